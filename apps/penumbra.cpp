@@ -1,0 +1,219 @@
+// The `penumbra` command line: parses, calls the library, catches once, exits. The verbs and
+// options are those of shared/CONTRACT.md plus extensions listed in `penumbra --help`.
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <regex>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "core/parallel.h"
+#include "io/atomic_file.h"
+#include "io/image_io.h"
+#include "io/report.h"
+#include "io/solution.h"
+#include "mesh/scene.h"
+#include "render/radiosity_view.h"
+#include "solver/solve.h"
+
+using namespace penumbra;
+
+namespace {
+
+struct CommonOptions {
+    int threads = 0;
+    bool quiet = false, verbose = false;
+    uint64_t seed = 1;
+};
+
+struct SolveCli {
+    std::string scene, out;
+    SolveOptions options;
+    double maxMemoryGiB = 0;
+    int viewSpp = 4;
+};
+
+struct RenderCli {
+    std::string scene, out, solution, integrator, camera, resolution;
+    int spp = 4;
+    double exposure = 0;
+};
+
+void addSolveOptions(CLI::App* cmd, SolveCli& s) {
+    cmd->add_option("--patches", s.options.meshing.targetPatches, "About this many patches in all")
+        ->capture_default_str()->check(CLI::Range(1, 100000000));
+    cmd->add_option("--patch-size", s.options.meshing.patchSize, "Target patch edge length in metres (overrides --patches)")
+        ->check(CLI::PositiveNumber);
+    cmd->add_option("--solver", s.options.solver, "jacobi | gauss-seidel | southwell")->capture_default_str();
+    cmd->add_option("--tolerance", s.options.solverSettings.tolerance,
+                    "Stop when the unshot fraction of the emitted power falls below this")
+        ->capture_default_str()->check(CLI::PositiveNumber);
+    cmd->add_option("--max-iterations", s.options.solverSettings.maxIterations, "Iteration cap")
+        ->capture_default_str()->check(CLI::Range(1, 100000000));
+    cmd->add_option("--visibility-rays", s.options.formFactors.visibilityRays,
+                    "Visibility rays per patch pair (x4 where a shadow edge crosses the pair)")
+        ->capture_default_str()->check(CLI::Range(1, 4096));
+    cmd->add_option("--ff-tolerance", s.options.formFactors.cubature.tolerance,
+                    "Target relative error of each unoccluded form factor")
+        ->capture_default_str()->check(CLI::Range(1e-12, 1.0));
+    cmd->add_option("--max-memory", s.maxMemoryGiB, "Memory budget in GiB for the matrix (default: what is available)")
+        ->check(CLI::PositiveNumber);
+}
+
+void setupLogging(const CommonOptions& c) {
+    setLogLevel(c.quiet ? LogLevel::Warning : c.verbose ? LogLevel::Debug : LogLevel::Info);
+    setThreadCount(c.threads);
+}
+
+int runSolve(SolveCli& s, const CommonOptions& common) {
+    const Scene scene = loadScene(s.scene);
+    s.options.formFactors.seed = common.seed;
+    s.options.maxMemoryBytes = s.maxMemoryGiB * double(1ull << 30);
+    const SolveResult r = solveScene(scene, s.options);
+    const auto corners = interpolateCorners(r.patches, r.solution.display);
+
+    // Everything is computed before the first byte is written; each file appears whole.
+    ensureDirectory(s.out);
+    const std::filesystem::path dir(s.out);
+    writeSolution((dir / "solution.bin").string(), {scene.fingerprint, r.patches, r.solution.B, r.solution.display});
+    writeFileAtomic((dir / "convergence.csv").string(), convergenceCsv(r));
+    if (scene.hasCamera) {
+        RayScene rays(r.patches);
+        const Image view = renderRadiosityView(scene, scene.camera, r.patches, rays, corners, {s.viewSpp, common.seed});
+        writeLinearImage(view, (dir / "radiosity.exr").string());
+        writePreviewPng(view, (dir / "radiosity.png").string());
+    }
+    writeFileAtomic((dir / "report.json").string(), reportJson(scene, r, peakMemoryBytes()));
+    const Rgb& e = r.power.totalEmitted;
+    logInfo("wrote ", s.out, ": ", r.patches.size(), " patches, emitted ", e.sum(), " W, absorbed ",
+            r.power.totalAbsorbed.sum(), " W, escaped ", r.power.escaped.sum(), " W");
+    return 0;
+}
+
+Camera cameraFor(const Scene& scene, const RenderCli& c) {
+    Camera camera = scene.camera;
+    if (!c.camera.empty()) {
+        camera = parseCamera(c.camera, scene.unitScale, "--camera");
+    } else if (!scene.hasCamera) {
+        throw Error(cat(scene.path, ": camera: the scene has no camera; add one or pass --camera '{\"position\": ..., \"look_at\": ...}'"));
+    }
+    if (!c.resolution.empty()) {
+        std::smatch m;
+        if (!std::regex_match(c.resolution, m, std::regex(R"((\d{1,5})x(\d{1,5}))")))
+            throw Error(cat("--resolution: expected WIDTHxHEIGHT such as 512x512, got '", c.resolution, "'"));
+        camera.width = std::stoi(m[1]);
+        camera.height = std::stoi(m[2]);
+        if (camera.width < 1 || camera.height < 1 || camera.width > 16384 || camera.height > 16384)
+            throw Error("--resolution: width and height must lie in [1, 16384]");
+    }
+    return camera;
+}
+
+int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
+    const Scene scene = loadScene(c.scene);
+    const Camera camera = cameraFor(scene, c);
+    std::string integrator = c.integrator;
+    if (integrator.empty()) {
+        logWarning("the final-gather integrator is not built yet (issue 3): rendering the radiosity view");
+        integrator = "radiosity";
+    }
+    if (integrator == "final-gather" || integrator == "path")
+        throw Error(cat("--integrator ", integrator, ": not built yet (issue 3); use --integrator radiosity"));
+    if (integrator != "radiosity")
+        throw Error(cat("--integrator: unknown integrator '", integrator, "' (known: radiosity, final-gather, path)"));
+    const std::string ext = std::filesystem::path(c.out).extension().string();
+    if (ext != ".exr" && ext != ".hdr") throw Error(cat("--out ", c.out, ": expected an .exr or .hdr file name"));
+
+    StoredSolution stored;
+    if (!c.solution.empty()) {
+        stored = readSolution((std::filesystem::path(c.solution) / "solution.bin").string());
+        if (stored.sceneFingerprint != scene.fingerprint)
+            throw Error(cat(c.solution, ": this solution was solved for another version of ", c.scene,
+                            " (or another scene): solve again"));
+        for (int o : stored.patches.object)
+            if (o < 0 || size_t(o) >= scene.objects.size()) throw Error(cat(c.solution, ": solution file is damaged"));
+    } else {
+        s.options.formFactors.seed = common.seed;
+        s.options.maxMemoryBytes = s.maxMemoryGiB * double(1ull << 30);
+        SolveResult r = solveScene(scene, s.options);
+        stored = {scene.fingerprint, std::move(r.patches), r.solution.B, r.solution.display};
+    }
+    const auto corners = interpolateCorners(stored.patches, stored.display);
+    RayScene rays(stored.patches);
+    const Image image = renderRadiosityView(scene, camera, stored.patches, rays, corners, {c.spp, common.seed});
+    const std::string parent = std::filesystem::path(c.out).parent_path().string();
+    if (!parent.empty()) ensureDirectory(parent);
+    writeLinearImage(image, c.out);
+    writePreviewPng(image, previewPathFor(c.out), c.exposure);
+    logInfo("wrote ", c.out, " and ", previewPathFor(c.out), " (", camera.width, "x", camera.height, ")");
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    CLI::App app{"penumbra: global illumination by radiosity, photon mapping and final gathering"};
+    app.require_subcommand(1);
+    CommonOptions common;
+    app.add_option("--threads", common.threads, "Threads (0: all cores)");
+    app.add_flag("--quiet,-q", common.quiet, "Warnings and errors only");
+    app.add_flag("--verbose,-v", common.verbose, "Debug output");
+    app.add_option("--seed", common.seed, "Random seed (results are reproducible for a seed)");
+
+    SolveCli solve;
+    CLI::App* solveCmd = app.add_subcommand("solve", "View-independent radiosity solve");
+    solveCmd->add_option("scene", solve.scene, "Scene JSON file")->required();
+    solveCmd->add_option("--out", solve.out, "Output directory (report.json, solution.bin, ...)")->required();
+    solveCmd->add_option("--view-spp", solve.viewSpp, "Samples per pixel of the radiosity picture")->capture_default_str();
+    addSolveOptions(solveCmd, solve);
+
+    RenderCli render;
+    SolveCli renderSolve;
+    CLI::App* renderCmd = app.add_subcommand("render", "Render an image of the (solved) scene");
+    renderCmd->add_option("scene", render.scene, "Scene JSON file")->required();
+    renderCmd->add_option("--out", render.out, "Output image (.exr or .hdr); a .png preview is written beside it")->required();
+    renderCmd->add_option("--solution", render.solution, "Directory of a previous solve to reuse");
+    renderCmd->add_option("--integrator", render.integrator, "radiosity | final-gather | path");
+    renderCmd->add_option("--spp", render.spp, "Samples per pixel")->capture_default_str()->check(CLI::Range(1, 1 << 20));
+    renderCmd->add_option("--resolution", render.resolution, "WIDTHxHEIGHT, overrides the camera's");
+    renderCmd->add_option("--camera", render.camera, "Camera as JSON, overrides the scene's");
+    renderCmd->add_option("--exposure", render.exposure, "Exposure of the PNG preview, in stops");
+    addSolveOptions(renderCmd, renderSolve);
+
+    CLI::App* viewCmd = app.add_subcommand("view", "Browse a solved scene interactively");
+    std::string viewScene, viewSolution;
+    viewCmd->add_option("scene", viewScene, "Scene JSON file")->required();
+    viewCmd->add_option("--solution", viewSolution, "Directory of a previous solve");
+
+    for (CLI::App* cmd : {solveCmd, renderCmd, viewCmd}) {
+        cmd->add_option("--threads", common.threads, "Threads (0: all cores)");
+        cmd->add_flag("--quiet,-q", common.quiet, "Warnings and errors only");
+        cmd->add_flag("--verbose,-v", common.verbose, "Debug output");
+        cmd->add_option("--seed", common.seed, "Random seed");
+    }
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        return app.exit(e);
+    }
+    try {
+        setupLogging(common);
+        if (*solveCmd) return runSolve(solve, common);
+        if (*renderCmd) return runRender(render, renderSolve, common);
+        if (*viewCmd)
+            throw Error("view: the interactive viewer is not built yet (issue 4); render the solved radiosity with "
+                        "`penumbra render SCENE --solution DIR --integrator radiosity --out IMAGE.exr`");
+    } catch (const Error& e) {
+        std::fprintf(stderr, "penumbra: error: %s\n", e.what());
+        return 1;
+    } catch (const std::bad_alloc&) {
+        std::fprintf(stderr, "penumbra: error: out of memory (lower --patches or the resolution)\n");
+        return 1;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "penumbra: internal error: %s\n", e.what());
+        return 70;
+    }
+    return 0;
+}

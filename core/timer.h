@@ -1,0 +1,19 @@
+// Wall-clock stopwatch for the per-stage timings that go into report.json and the bench.
+#pragma once
+
+#include <chrono>
+
+namespace penumbra {
+
+class Timer {
+public:
+    Timer() : start_(std::chrono::steady_clock::now()) {}
+    double seconds() const {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    }
+
+private:
+    std::chrono::steady_clock::time_point start_;
+};
+
+}  // namespace penumbra

@@ -1,0 +1,70 @@
+#include "io/image_io.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "core/error.h"
+#include "io/atomic_file.h"
+
+namespace penumbra {
+namespace {
+
+void writeWith(const std::string& path, int w, int h, OIIO::TypeDesc type, const void* data) {
+    const std::string tmp = temporarySibling(path);
+    auto out = OIIO::ImageOutput::create(path);
+    if (!out) throw Error(cat(path, ": cannot write images of this type (", OIIO::geterror(), ")"));
+    OIIO::ImageSpec spec(w, h, 3, type);
+    if (!out->open(tmp, spec) || !out->write_image(type, data) || !out->close()) {
+        const std::string why = out->geterror();
+        std::error_code ec;
+        std::filesystem::remove(tmp, ec);
+        throw Error(cat(path, ": cannot write image: ", why));
+    }
+    commitFile(tmp, path);
+}
+
+}  // namespace
+
+void writeLinearImage(const Image& image, const std::string& path) {
+    writeWith(path, image.width, image.height, OIIO::TypeDesc::FLOAT, image.rgb.data());
+}
+
+Image readLinearImage(const std::string& path) {
+    auto in = OIIO::ImageInput::open(path);
+    if (!in) throw Error(cat(path, ": cannot read image (", OIIO::geterror(), ")"));
+    const OIIO::ImageSpec& spec = in->spec();
+    Image image(spec.width, spec.height);
+    std::vector<float> all(size_t(spec.width) * size_t(spec.height) * size_t(spec.nchannels));
+    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, all.data()))
+        throw Error(cat(path, ": cannot read image: ", in->geterror()));
+    for (size_t p = 0; p < size_t(spec.width) * size_t(spec.height); ++p)
+        for (size_t c = 0; c < 3; ++c) image.rgb[3 * p + c] = all[p * size_t(spec.nchannels) + std::min<size_t>(c, size_t(spec.nchannels) - 1)];
+    return image;
+}
+
+void writePreviewPng(const Image& image, const std::string& path, double exposureStops) {
+    double logSum = 0;
+    size_t count = 0;
+    for (int y = 0; y < image.height; ++y)
+        for (int x = 0; x < image.width; ++x) {
+            const double l = luminance(image.at(x, y));
+            if (l > 0) logSum += std::log(l), ++count;
+        }
+    const double key = count ? std::exp(logSum / double(count)) : 1;
+    const double scale = 0.18 / key * std::pow(2.0, exposureStops);
+    std::vector<unsigned char> pixels(image.rgb.size());
+    for (size_t k = 0; k < image.rgb.size(); ++k) {
+        const double v = std::clamp(double(image.rgb[k]) * scale, 0.0, 1.0);
+        const double s = v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055;
+        pixels[k] = static_cast<unsigned char>(std::lround(255 * s));
+    }
+    writeWith(path, image.width, image.height, OIIO::TypeDesc::UINT8, pixels.data());
+}
+
+std::string previewPathFor(const std::string& linearPath) {
+    return std::filesystem::path(linearPath).replace_extension(".png").string();
+}
+
+}  // namespace penumbra

@@ -1,0 +1,73 @@
+#include "io/report.h"
+
+#include <nlohmann/json.hpp>
+
+#include "core/error.h"
+#include "core/parallel.h"
+
+namespace penumbra {
+namespace {
+nlohmann::json rgbJson(const Rgb& c) { return nlohmann::json::array({c[0], c[1], c[2]}); }
+}  // namespace
+
+std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemory) {
+    using Json = nlohmann::json;
+    const size_t objects = scene.objects.size();
+    std::vector<double> area(objects, 0.0);
+    std::vector<Rgb> weighted(objects, Rgb::Zero()), emitted(objects, Rgb::Zero()), absorbed(objects, Rgb::Zero());
+    std::vector<int> patchCount(objects, 0);
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        const size_t o = size_t(r.patches.object[i]);
+        area[o] += r.patches.area[i];
+        weighted[o] += r.patches.area[i] * r.solution.B[i];
+        emitted[o] += r.power.emitted[i];
+        absorbed[o] += r.power.absorbed[i];
+        ++patchCount[o];
+    }
+    Json report;
+    Json& objs = report["objects"];
+    objs = Json::object();
+    for (size_t o = 0; o < objects; ++o) {
+        Json entry;
+        entry["area_m2"] = area[o];
+        entry["radiosity_mean"] = rgbJson(area[o] > 0 ? Rgb(weighted[o] / area[o]) : Rgb::Zero());
+        entry["emitted_power_w"] = rgbJson(emitted[o]);
+        entry["absorbed_power_w"] = rgbJson(absorbed[o]);
+        entry["patches"] = patchCount[o];
+        objs[scene.objects[o].name] = entry;
+    }
+    report["totals"] = {{"emitted_power_w", rgbJson(r.power.totalEmitted)},
+                        {"absorbed_power_w", rgbJson(r.power.totalAbsorbed)},
+                        {"escaped_power_w", rgbJson(r.power.escaped)}};
+    const FormFactorStats& ff = r.F.stats;
+    report["solver"] = {
+        {"name", r.solverName},
+        {"patches", r.patches.size()},
+        {"iterations", r.solution.iterations},
+        {"residual", r.solution.residual},
+        {"converged", r.solution.converged},
+        {"threads", threadCount()},
+        {"seconds",
+         {{"meshing", r.secondsMeshing}, {"form_factors", r.secondsFormFactors}, {"solve", r.secondsSolve}}},
+        {"counters",
+         {{"facing_pairs", ff.pairs},
+          {"occluded_pairs", ff.occluded},
+          {"partly_visible_pairs", ff.partiallyVisible},
+          {"visibility_rays", ff.rays},
+          {"kernel_evaluations", ff.kernelEvaluations},
+          {"back_face_transfers", r.F.backTransfers.size()}}},
+        {"form_factor_row_sum", {{"min", r.rowSumMin}, {"max", r.rowSumMax}}},
+        {"matrix_mib", double(formFactorMatrixBytes(r.patches.size())) / (1 << 20)},
+        {"peak_memory_mib", peakMemory / (1 << 20)},
+    };
+    report["scene"] = {{"file", scene.path}, {"unit_scale", scene.unitScale}};
+    return report.dump(2) + "\n";
+}
+
+std::string convergenceCsv(const SolveResult& r) {
+    std::string csv = "iteration,residual,seconds\n";
+    for (const auto& step : r.solution.history) csv += cat(step.iteration, ",", step.residual, ",", step.seconds, "\n");
+    return csv;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,87 @@
+#include "io/solution.h"
+
+#include <cstring>
+#include <fstream>
+
+#include "core/error.h"
+#include "io/atomic_file.h"
+
+namespace penumbra {
+namespace {
+
+constexpr char kMagic[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '1'};
+
+struct Writer {
+    std::string bytes;
+    template <typename T> void put(const T& v) { bytes.append(reinterpret_cast<const char*>(&v), sizeof(T)); }
+    void put(const Vec3& v) { put(v.x()), put(v.y()), put(v.z()); }
+    void put(const Rgb& v) { put(v[0]), put(v[1]), put(v[2]); }
+};
+
+struct Reader {
+    const std::string& bytes;
+    const std::string& path;
+    size_t at = 0;
+    template <typename T> T get() {
+        if (at + sizeof(T) > bytes.size()) throw Error(cat(path, ": solution file is truncated"));
+        T v;
+        std::memcpy(&v, bytes.data() + at, sizeof(T));
+        at += sizeof(T);
+        return v;
+    }
+    Vec3 vec() { const double x = get<double>(), y = get<double>(), z = get<double>(); return Vec3(x, y, z); }
+    Rgb rgb() { const double x = get<double>(), y = get<double>(), z = get<double>(); return Rgb(x, y, z); }
+};
+
+}  // namespace
+
+void writeSolution(const std::string& path, const StoredSolution& s) {
+    Writer w;
+    w.bytes.append(kMagic, 8);
+    w.put(s.sceneFingerprint);
+    w.put(uint64_t(s.patches.size()));
+    w.put(uint64_t(s.patches.vertices.size()));
+    for (const Vec3& v : s.patches.vertices) w.put(v);
+    for (size_t i = 0; i < s.patches.size(); ++i) {
+        w.put(s.patches.cornerCount[i]);
+        w.put(int32_t(s.patches.object[i]));
+        for (int k = 0; k < 4; ++k) w.put(s.patches.corners[i][size_t(k)]);
+        for (int k = 0; k < 4; ++k) w.put(int32_t(s.patches.cornerVertex[i][size_t(k)]));
+        w.put(s.radiosity[i]);
+        w.put(s.display[i]);
+    }
+    writeFileAtomic(path, w.bytes);
+}
+
+StoredSolution readSolution(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw Error(cat(path, ": no solution here (solve the scene first with `penumbra solve SCENE --out DIR`)"));
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (bytes.size() < 8 || std::memcmp(bytes.data(), kMagic, 8) != 0)
+        throw Error(cat(path, ": not a Penumbra solution file (or from an incompatible version)"));
+    Reader r{bytes, path, 8};
+    StoredSolution s;
+    s.sceneFingerprint = r.get<uint64_t>();
+    const uint64_t n = r.get<uint64_t>(), nv = r.get<uint64_t>();
+    if (n > bytes.size() || nv > bytes.size()) throw Error(cat(path, ": solution file is damaged"));
+    for (uint64_t k = 0; k < nv; ++k) s.patches.vertices.push_back(r.vec());
+    for (uint64_t i = 0; i < n; ++i) {
+        const uint8_t count = r.get<uint8_t>();
+        const int object = r.get<int32_t>();
+        std::array<Vec3, 4> c;
+        for (auto& p : c) p = r.vec();
+        std::array<int, 4> ids;
+        for (auto& id : ids) {
+            id = r.get<int32_t>();
+            if (id < 0 || uint64_t(id) >= nv) throw Error(cat(path, ": solution file is damaged"));
+        }
+        if (count != 3 && count != 4) throw Error(cat(path, ": solution file is damaged"));
+        s.patches.add(c, count, object, ids);
+        s.radiosity.push_back(r.rgb());
+        s.display.push_back(r.rgb());
+    }
+    if (s.patches.size() != n) throw Error(cat(path, ": solution file is damaged (degenerate patch)"));
+    return s;
+}
+
+}  // namespace penumbra

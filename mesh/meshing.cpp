@@ -1,0 +1,256 @@
+// Scene objects -> OpenMesh meshes -> patches. Quads become grids of quads; triangles a regular
+// grid of sub-triangles; spheres a projected cube (near-uniform quads); mesh files are triangulated
+// and refined with OpenMesh's longest-edge splitting until no edge exceeds the target size.
+#include <cmath>
+#include <map>
+
+#include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
+#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
+#include <OpenMesh/Tools/Subdivider/Uniform/LongestEdgeT.hh>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "mesh/patches.h"
+
+namespace penumbra {
+namespace {
+
+struct Traits : public OpenMesh::DefaultTraits {
+    typedef OpenMesh::Vec3d Point;
+};
+using PolyMesh = OpenMesh::PolyMesh_ArrayKernelT<Traits>;
+using TriMesh = OpenMesh::TriMesh_ArrayKernelT<Traits>;
+
+OpenMesh::Vec3d om(const Vec3& v) { return OpenMesh::Vec3d(v.x(), v.y(), v.z()); }
+Vec3 eig(const OpenMesh::Vec3d& v) { return Vec3(v[0], v[1], v[2]); }
+
+// Copies the faces of an OpenMesh mesh into the patch set (its vertices become display vertices).
+template <typename Mesh>
+void appendMesh(const Mesh& mesh, int objectIndex, PatchSet& out) {
+    const int base = int(out.vertices.size());
+    for (auto v : mesh.vertices()) out.vertices.push_back(eig(mesh.point(v)));
+    for (auto f : mesh.faces()) {
+        std::array<Vec3, 4> c;
+        std::array<int, 4> ids{};
+        int n = 0;
+        for (auto v : mesh.fv_range(f)) {
+            PENUMBRA_CHECK_LT(n, 4);
+            c[size_t(n)] = eig(mesh.point(v));
+            ids[size_t(n)] = base + v.idx();
+            ++n;
+        }
+        PENUMBRA_CHECK(n == 3 || n == 4);
+        if (n == 3) c[3] = c[2], ids[3] = ids[2];
+        out.add(c, n, objectIndex, ids);
+    }
+}
+
+int divisions(double length, double h) { return std::max(1, int(std::ceil(length / h - 1e-9))); }
+
+PolyMesh gridQuad(const std::vector<Vec3>& q, double h) {
+    const int nu = divisions(std::max((q[1] - q[0]).norm(), (q[2] - q[3]).norm()), h);
+    const int nv = divisions(std::max((q[3] - q[0]).norm(), (q[2] - q[1]).norm()), h);
+    PolyMesh mesh;
+    std::vector<PolyMesh::VertexHandle> vh;
+    for (int j = 0; j <= nv; ++j)
+        for (int i = 0; i <= nu; ++i) {
+            const double u = double(i) / nu, v = double(j) / nv;
+            vh.push_back(mesh.add_vertex(om((1 - u) * (1 - v) * q[0] + u * (1 - v) * q[1] + u * v * q[2] + (1 - u) * v * q[3])));
+        }
+    for (int j = 0; j < nv; ++j)
+        for (int i = 0; i < nu; ++i) {
+            const int a = j * (nu + 1) + i;
+            mesh.add_face(vh[size_t(a)], vh[size_t(a + 1)], vh[size_t(a + nu + 2)], vh[size_t(a + nu + 1)]);
+        }
+    return mesh;
+}
+
+PolyMesh gridTriangle(const std::vector<Vec3>& t, double h) {
+    const double longest = std::max({(t[1] - t[0]).norm(), (t[2] - t[1]).norm(), (t[0] - t[2]).norm()});
+    const int k = divisions(longest, h);
+    PolyMesh mesh;
+    // Vertex (i, j) at t0 + i/k (t1 - t0) + j/k (t2 - t0), i + j <= k.
+    std::vector<std::vector<PolyMesh::VertexHandle>> vh(size_t(k + 1));
+    for (int i = 0; i <= k; ++i)
+        for (int j = 0; j <= k - i; ++j)
+            vh[size_t(i)].push_back(mesh.add_vertex(om(t[0] + (double(i) / k) * (t[1] - t[0]) + (double(j) / k) * (t[2] - t[0]))));
+    for (int i = 0; i < k; ++i)
+        for (int j = 0; j < k - i; ++j) {
+            mesh.add_face(vh[size_t(i)][size_t(j)], vh[size_t(i + 1)][size_t(j)], vh[size_t(i)][size_t(j + 1)]);
+            if (j + 1 < k - i)
+                mesh.add_face(vh[size_t(i + 1)][size_t(j)], vh[size_t(i + 1)][size_t(j + 1)], vh[size_t(i)][size_t(j + 1)]);
+        }
+    return mesh;
+}
+
+// A cube's six faces, each a k x k grid, projected onto the unit sphere, then mapped to the world.
+PolyMesh cubeSphere(const SceneObject& o, double h) {
+    const Vec3 c = o.toWorld * o.center;
+    const double worldRadius = (o.toWorld.linear() * Vec3(o.radius, 0, 0)).norm();
+    const double area = 4 * kPi * worldRadius * worldRadius;
+    const int k = std::max(2, int(std::ceil(std::sqrt(area / (6 * h * h)))));
+    PolyMesh mesh;
+    std::map<std::array<long, 3>, PolyMesh::VertexHandle> shared;   // cube-edge vertices shared by faces
+    auto vertex = [&](const Vec3& cubePoint) {
+        const std::array<long, 3> key{std::lround(cubePoint.x() * 2 * k), std::lround(cubePoint.y() * 2 * k),
+                                      std::lround(cubePoint.z() * 2 * k)};
+        auto it = shared.find(key);
+        if (it != shared.end()) return it->second;
+        const Vec3 p = o.toWorld * (o.center + o.radius * cubePoint.normalized());
+        return shared[key] = mesh.add_vertex(om(p));
+    };
+    for (int axis = 0; axis < 3; ++axis)
+        for (int sign = -1; sign <= 1; sign += 2) {
+            Vec3 n = Vec3::Zero();
+            n[axis] = sign;
+            Vec3 a = Vec3::Zero(), b = Vec3::Zero();
+            a[(axis + 1) % 3] = 1;
+            b[(axis + 2) % 3] = 1;
+            if (sign < 0) std::swap(a, b);   // keep a x b along the outward normal
+            for (int j = 0; j < k; ++j)
+                for (int i = 0; i < k; ++i) {
+                    auto p = [&](int ii, int jj) { return n + (2.0 * ii / k - 1) * a + (2.0 * jj / k - 1) * b; };
+                    mesh.add_face(vertex(p(i, j)), vertex(p(i + 1, j)), vertex(p(i + 1, j + 1)), vertex(p(i, j + 1)));
+                }
+        }
+    (void)c;
+    return mesh;
+}
+
+TriMesh refinedSoup(const PolygonSoup& soup, double h, const std::string& name) {
+    TriMesh mesh;
+    std::vector<TriMesh::VertexHandle> vh;
+    for (const auto& v : soup.vertices) vh.push_back(mesh.add_vertex(om(v)));
+    size_t skipped = 0;
+    for (const auto& f : soup.faces)
+        for (size_t k = 1; k + 1 < f.size(); ++k) {   // fan triangulation of convex polygons
+            const Vec3& a = soup.vertices[size_t(f[0])];
+            const Vec3& b = soup.vertices[size_t(f[k])];
+            const Vec3& c = soup.vertices[size_t(f[k + 1])];
+            const double edge = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+            if ((b - a).cross(c - a).norm() <= 1e-12 * edge * edge || !mesh.add_face(vh[size_t(f[0])], vh[size_t(f[k])], vh[size_t(f[k + 1])]).is_valid())
+                ++skipped;
+        }
+    if (skipped) logWarning("object '", name, "': skipped ", skipped, " degenerate or non-manifold mesh faces");
+    if (mesh.n_faces() == 0) throw Error(cat("object '", name, "': its mesh has no usable faces"));
+    OpenMesh::Subdivider::Uniform::LongestEdgeT<TriMesh, double> split;
+    split.set_max_edge_length(h * std::sqrt(2.0));
+    split.attach(mesh);
+    split(1);
+    split.detach();
+    mesh.garbage_collection();
+    return mesh;
+}
+
+}  // namespace
+
+double PatchSet::boundingRadius(size_t i) const {
+    double r = 0;
+    for (int k = 0; k < 4; ++k) r = std::max(r, (corners[i][size_t(k)] - centroid[i]).norm());
+    return r;
+}
+
+Vec3 PatchSet::pointAt(size_t i, double u, double v) const {
+    const auto& c = corners[i];
+    if (isTriangle(i)) return c[0] + u * ((1 - v) * (c[1] - c[0]) + v * (c[2] - c[0]));
+    return (1 - u) * (1 - v) * c[0] + u * (1 - v) * c[1] + u * v * c[2] + (1 - u) * v * c[3];
+}
+
+double PatchSet::jacobian(size_t i, double u, double v) const {
+    const auto& c = corners[i];
+    if (isTriangle(i)) return u * (c[1] - c[0]).cross(c[2] - c[0]).norm();
+    const Vec3 du = (1 - v) * (c[1] - c[0]) + v * (c[2] - c[3]);
+    const Vec3 dv = (1 - u) * (c[3] - c[0]) + u * (c[2] - c[1]);
+    return du.cross(dv).norm();
+}
+
+void PatchSet::add(const std::array<Vec3, 4>& c, int count, int objectIndex, const std::array<int, 4>& vertexIds) {
+    const Vec3 vectorArea = count == 3 ? 0.5 * (c[1] - c[0]).cross(c[2] - c[0]) : 0.5 * (c[2] - c[0]).cross(c[3] - c[1]);
+    const double a = vectorArea.norm();
+    if (!(a > 0)) return;   // a degenerate sub-face (only from mesh refinement) carries no light
+    corners.push_back(c);
+    cornerCount.push_back(uint8_t(count));
+    normal.push_back(vectorArea / a);
+    area.push_back(a);
+    object.push_back(objectIndex);
+    cornerVertex.push_back(vertexIds);
+    // Area centroid: for a quad, the area-weighted mean of its two triangles' centroids.
+    if (count == 3) {
+        centroid.push_back((c[0] + c[1] + c[2]) / 3);
+    } else {
+        const double a1 = (c[1] - c[0]).cross(c[2] - c[0]).norm(), a2 = (c[2] - c[0]).cross(c[3] - c[0]).norm();
+        const Vec3 g1 = (c[0] + c[1] + c[2]) / 3, g2 = (c[0] + c[2] + c[3]) / 3;
+        centroid.push_back(a1 + a2 > 0 ? Vec3((a1 * g1 + a2 * g2) / (a1 + a2)) : Vec3((c[0] + c[1] + c[2] + c[3]) / 4));
+    }
+}
+
+double sceneArea(const Scene& scene) {
+    double total = 0;
+    for (const auto& o : scene.objects) {
+        switch (o.type) {
+        case ShapeType::Quad:
+            total += 0.5 * (o.vertices[2] - o.vertices[0]).cross(o.vertices[3] - o.vertices[1]).norm();
+            break;
+        case ShapeType::Triangle:
+            total += 0.5 * (o.vertices[1] - o.vertices[0]).cross(o.vertices[2] - o.vertices[0]).norm();
+            break;
+        case ShapeType::Sphere: {
+            const double r = (o.toWorld.linear() * Vec3(o.radius, 0, 0)).norm();
+            total += 4 * kPi * r * r;
+            break;
+        }
+        case ShapeType::Mesh:
+            for (const auto& f : o.mesh.faces)
+                for (size_t k = 1; k + 1 < f.size(); ++k)
+                    total += 0.5 * (o.mesh.vertices[size_t(f[k])] - o.mesh.vertices[size_t(f[0])])
+                                       .cross(o.mesh.vertices[size_t(f[k + 1])] - o.mesh.vertices[size_t(f[0])])
+                                       .norm();
+            break;
+        }
+    }
+    return total;
+}
+
+PatchSet meshScene(const Scene& scene, const MeshingOptions& options) {
+    double h = options.patchSize;
+    if (!(h > 0)) {
+        if (options.targetPatches < 1) throw Error("--patches must be at least 1");
+        h = std::sqrt(sceneArea(scene) / options.targetPatches);
+    }
+    PatchSet patches;
+    for (size_t i = 0; i < scene.objects.size(); ++i) {
+        const SceneObject& o = scene.objects[i];
+        switch (o.type) {
+        case ShapeType::Quad: appendMesh(gridQuad(o.vertices, h), int(i), patches); break;
+        case ShapeType::Triangle: appendMesh(gridTriangle(o.vertices, h), int(i), patches); break;
+        case ShapeType::Sphere: appendMesh(cubeSphere(o, h), int(i), patches); break;
+        case ShapeType::Mesh: appendMesh(refinedSoup(o.mesh, h, o.name), int(i), patches); break;
+        }
+    }
+    logInfo("meshed ", scene.objects.size(), " objects into ", patches.size(), " patches (target size ", h, " m)");
+    return patches;
+}
+
+std::vector<std::array<Rgb, 4>> interpolateCorners(const PatchSet& p, const std::vector<Rgb>& value, double creaseDeg) {
+    // Patches around each vertex (vertices are per object, so nothing crosses objects).
+    std::vector<std::vector<int>> around(p.vertices.size());
+    for (size_t i = 0; i < p.size(); ++i)
+        for (int k = 0; k < p.cornerCount[i]; ++k) around[size_t(p.cornerVertex[i][size_t(k)])].push_back(int(i));
+    const double cosCrease = std::cos(creaseDeg * kPi / 180);
+    std::vector<std::array<Rgb, 4>> out(p.size());
+    for (size_t i = 0; i < p.size(); ++i) {
+        for (int k = 0; k < 4; ++k) {
+            Rgb sum = Rgb::Zero();
+            double weight = 0;
+            for (int j : around[size_t(p.cornerVertex[i][size_t(k)])])
+                if (p.normal[size_t(j)].dot(p.normal[i]) >= cosCrease) {
+                    sum += p.area[size_t(j)] * value[size_t(j)];
+                    weight += p.area[size_t(j)];
+                }
+            out[i][size_t(k)] = weight > 0 ? Rgb(sum / weight) : value[i];
+        }
+    }
+    return out;
+}
+
+}  // namespace penumbra

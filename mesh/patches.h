@@ -1,0 +1,55 @@
+// Patches: the flat, contiguous surface elements that the radiosity solver works on. Each patch is
+// a planar (or nearly planar) quad or triangle of one scene object; triangles repeat their last
+// corner (corner[3] == corner[2]) so every patch is handled as four corners. Lengths in metres.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "core/math.h"
+#include "mesh/scene.h"
+
+namespace penumbra {
+
+struct PatchSet {
+    std::vector<std::array<Vec3, 4>> corners;
+    std::vector<uint8_t> cornerCount;           // 3 or 4
+    std::vector<Vec3> normal;                   // unit, front side
+    std::vector<Vec3> centroid;
+    std::vector<double> area;                   // m^2
+    std::vector<int> object;                    // index into Scene::objects
+    // Display mesh: corners index shared vertices, so that radiosity can be interpolated per
+    // surface. Vertices are never shared between objects.
+    std::vector<std::array<int, 4>> cornerVertex;
+    std::vector<Vec3> vertices;
+
+    size_t size() const { return area.size(); }
+    bool isTriangle(size_t i) const { return cornerCount[i] == 3; }
+    // Radius of the smallest sphere about the centroid that holds the patch.
+    double boundingRadius(size_t i) const;
+    // Point at parameters (u, v) in [0,1]^2: bilinear on quads, collapsed (Duffy) on triangles.
+    Vec3 pointAt(size_t i, double u, double v) const;
+    // |dP/du x dP/dv| at (u, v): the area element of pointAt.
+    double jacobian(size_t i, double u, double v) const;
+    // Adds one patch and its display vertices (by index into `vertices`).
+    void add(const std::array<Vec3, 4>& c, int count, int objectIndex, const std::array<int, 4>& vertexIds);
+};
+
+struct MeshingOptions {
+    int targetPatches = 3000;   // about this many patches in all
+    double patchSize = 0;       // if > 0: target edge length in metres, overrides targetPatches
+};
+
+// Meshes every object of the scene (OpenMesh) into patches.
+PatchSet meshScene(const Scene& scene, const MeshingOptions& options);
+
+// Total surface area of the scene's objects, m^2 (spheres exactly, before tessellation).
+double sceneArea(const Scene& scene);
+
+// Per-corner radiosity for display: the area-weighted mean of the values of the patches of the same
+// object that share the corner's vertex and whose normals lie within `creaseDeg` of the patch's.
+std::vector<std::array<Rgb, 4>> interpolateCorners(const PatchSet& patches, const std::vector<Rgb>& value,
+                                                   double creaseDeg = 30);
+
+}  // namespace penumbra

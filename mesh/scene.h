@@ -1,0 +1,75 @@
+// The scene as the contract (shared/CONTRACT.md) defines it, validated and converted to metres.
+// Geometry keeps each object's local description plus its transform; meshing (mesh/meshing.h)
+// turns it into patches. Every field here has already passed validation.
+#pragma once
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "core/math.h"
+
+namespace penumbra {
+
+enum class MaterialType { Diffuse, Mirror, Dielectric };
+
+struct Material {
+    std::string name;
+    MaterialType type = MaterialType::Diffuse;
+    Rgb reflectance = Rgb::Zero();    // hemispherical albedo (diffuse) or specular tint (mirror)
+    Rgb emission = Rgb::Zero();       // radiance L_e, W sr^-1 m^-2, front face only
+    double ior = 1.5;                 // dielectric only
+    Rgb transmittance = Rgb::Ones();  // dielectric only
+    bool emits() const { return (emission > 0).any(); }
+};
+
+enum class ShapeType { Quad, Triangle, Mesh, Sphere };
+
+// A polygon soup read from a mesh file, in the file's own units (before transform).
+struct PolygonSoup {
+    std::vector<Vec3> vertices;
+    std::vector<std::vector<int>> faces;
+};
+
+struct SceneObject {
+    std::string name;
+    ShapeType type = ShapeType::Quad;
+    int material = -1;
+    std::vector<Vec3> vertices;   // quad (4) or triangle (3), in metres, world space
+    PolygonSoup mesh;             // mesh: vertices in metres, world space
+    std::string file;             // mesh: the resolved path
+    Vec3 center = Vec3::Zero();   // sphere: local centre (scene units)
+    double radius = 0;            // sphere: local radius (scene units)
+    // Local-to-world map in metres (scene units -> metres included). Applied to spheres at meshing.
+    Eigen::Affine3d toWorld = Eigen::Affine3d::Identity();
+};
+
+struct Camera {
+    Vec3 position = Vec3::Zero();   // metres
+    Vec3 lookAt = Vec3(0, 0, 1);
+    Vec3 up = Vec3(0, 1, 0);
+    double fovYDeg = 40;
+    int width = 512, height = 512;
+};
+
+struct Scene {
+    std::string path;             // the scene file, as given
+    double unitScale = 1;
+    std::vector<Material> materials;
+    std::vector<SceneObject> objects;
+    bool hasCamera = false;
+    Camera camera;
+    uint64_t fingerprint = 0;     // hash of the scene file and mesh files, to match solutions
+
+    bool hasEmitter() const;
+    bool hasSpecular() const;
+    const Material& materialOf(const SceneObject& o) const { return materials[size_t(o.material)]; }
+};
+
+// Reads and validates a scene file. Throws Error naming the file, object or field on bad input.
+Scene loadScene(const std::string& path);
+
+// Parses a camera given on the command line as JSON ({"position": ..., ...}), in scene units.
+Camera parseCamera(const std::string& json, double unitScale, const std::string& where);
+
+}  // namespace penumbra

@@ -1,0 +1,352 @@
+// Scene JSON -> Scene, with every check the contract asks for. Each error names the file, the
+// object (by index and name) or field, and what was expected; nothing is written before this ends.
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "mesh/mesh_file.h"
+#include "mesh/scene.h"
+
+namespace penumbra {
+namespace {
+
+using Json = nlohmann::json;
+
+// Coordinates beyond this many metres are taken as a unit mistake, not a scene.
+constexpr double kAbsurdMetres = 1e8;
+
+uint64_t fnv1a(const std::string& bytes, uint64_t h = 1469598103934665603ull) {
+    for (unsigned char c : bytes) h = (h ^ c) * 1099511628211ull;
+    return h;
+}
+
+std::string readFile(const std::string& path, const std::string& what) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw Error(cat(path, ": cannot open ", what));
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+// Context for error messages: "scene.json: objects[2] 'floor': vertices: ..."
+struct Where {
+    std::string file, path;
+    Where at(const std::string& key) const { return {file, path.empty() ? key : path + "." + key}; }
+    Where index(size_t i, const std::string& name = "") const {
+        return {file, cat(path, "[", i, "]", name.empty() ? "" : " '" + name + "'")};
+    }
+    [[noreturn]] void fail(const std::string& what) const {
+        throw Error(cat(file, ": ", path.empty() ? "" : path + ": ", what));
+    }
+};
+
+bool ignoredKey(const std::string& key) { return key == "comment" || (!key.empty() && key[0] == '_'); }
+
+void checkKeys(const Json& j, const Where& w, std::initializer_list<const char*> allowed) {
+    if (!j.is_object()) w.fail(cat("expected a JSON object, got ", j.type_name()));
+    for (const auto& item : j.items()) {
+        if (ignoredKey(item.key())) continue;
+        bool known = false;
+        for (const char* a : allowed) known = known || item.key() == a;
+        if (!known) {
+            std::string list;
+            for (const char* a : allowed) list += cat(list.empty() ? "" : ", ", a);
+            w.fail(cat("unknown key '", item.key(), "' (expected one of: ", list, ")"));
+        }
+    }
+}
+
+const Json& require(const Json& j, const char* key, const Where& w) {
+    auto it = j.find(key);
+    if (it == j.end()) w.fail(cat("missing required field '", key, "'"));
+    return *it;
+}
+
+double number(const Json& j, const Where& w) {
+    if (!j.is_number()) w.fail(cat("expected a number, got ", j.type_name()));
+    const double v = j.get<double>();
+    if (!std::isfinite(v)) w.fail("expected a finite number");
+    return v;
+}
+
+Vec3 vec3(const Json& j, const Where& w) {
+    if (!j.is_array() || j.size() != 3) w.fail("expected an array of three numbers");
+    return Vec3(number(j[0], w.index(0)), number(j[1], w.index(1)), number(j[2], w.index(2)));
+}
+
+Rgb rgb(const Json& j, const Where& w) {
+    if (j.is_number()) {
+        const double v = number(j, w);
+        return Rgb(v, v, v);
+    }
+    if (!j.is_array() || j.size() != 3) w.fail("expected an RGB array of three numbers");
+    return Rgb(number(j[0], w.index(0)), number(j[1], w.index(1)), number(j[2], w.index(2)));
+}
+
+Rgb unitRgb(const Json& j, const Where& w) {
+    const Rgb v = rgb(j, w);
+    for (int c = 0; c < 3; ++c)
+        if (v[c] < 0 || v[c] > 1) w.fail(cat("each channel must lie in [0, 1], got ", v[c]));
+    return v;
+}
+
+Material parseMaterial(const std::string& name, const Json& j, const Where& w) {
+    Material m;
+    m.name = name;
+    const Json& type = require(j, "type", w);
+    if (!type.is_string()) w.at("type").fail("expected a string");
+    const std::string t = type.get<std::string>();
+    if (t == "diffuse") {
+        checkKeys(j, w, {"type", "reflectance", "emission"});
+        m.type = MaterialType::Diffuse;
+        m.reflectance = unitRgb(require(j, "reflectance", w), w.at("reflectance"));
+        if (j.contains("emission")) {
+            m.emission = rgb(j["emission"], w.at("emission"));
+            if ((m.emission < 0).any()) w.at("emission").fail("emission radiance must not be negative");
+        }
+    } else if (t == "mirror") {
+        checkKeys(j, w, {"type", "reflectance"});
+        m.type = MaterialType::Mirror;
+        m.reflectance = j.contains("reflectance") ? unitRgb(j["reflectance"], w.at("reflectance")) : Rgb::Ones();
+    } else if (t == "dielectric") {
+        checkKeys(j, w, {"type", "ior", "transmittance"});
+        m.type = MaterialType::Dielectric;
+        m.ior = number(require(j, "ior", w), w.at("ior"));
+        if (!(m.ior > 0) || m.ior > 10) w.at("ior").fail(cat("index of refraction must lie in (0, 10], got ", m.ior));
+        if (j.contains("transmittance")) m.transmittance = unitRgb(j["transmittance"], w.at("transmittance"));
+    } else {
+        w.at("type").fail(cat("unknown material type '", t, "' (expected diffuse, mirror or dielectric)"));
+    }
+    return m;
+}
+
+Eigen::Affine3d parseTransform(const Json& j, const Where& w) {
+    checkKeys(j, w, {"scale", "rotate_deg", "translate"});
+    Vec3 scale(1, 1, 1), rot(0, 0, 0), tr(0, 0, 0);
+    if (j.contains("scale")) {
+        if (j["scale"].is_number()) {
+            const double s = number(j["scale"], w.at("scale"));
+            scale = Vec3(s, s, s);
+        } else {
+            scale = vec3(j["scale"], w.at("scale"));
+        }
+        for (int k = 0; k < 3; ++k)
+            if (scale[k] == 0) w.at("scale").fail("a scale component is zero: the object would collapse");
+    }
+    if (j.contains("rotate_deg")) rot = vec3(j["rotate_deg"], w.at("rotate_deg"));
+    if (j.contains("translate")) tr = vec3(j["translate"], w.at("translate"));
+    const double d = kPi / 180;
+    // Scale first, then rotations about x, then y, then z, then translation.
+    Eigen::Affine3d t = Eigen::Affine3d::Identity();
+    t.translate(tr);
+    t.rotate(Eigen::AngleAxisd(rot.z() * d, Vec3::UnitZ()));
+    t.rotate(Eigen::AngleAxisd(rot.y() * d, Vec3::UnitY()));
+    t.rotate(Eigen::AngleAxisd(rot.x() * d, Vec3::UnitX()));
+    t.scale(scale);
+    return t;
+}
+
+void checkCoordinate(const Vec3& p, const Where& w) {
+    if (p.cwiseAbs().maxCoeff() > kAbsurdMetres)
+        w.fail(cat("coordinate (", p.x(), ", ", p.y(), ", ", p.z(), ") m lies more than ", kAbsurdMetres,
+                   " m from the origin: check unit_scale"));
+}
+
+std::vector<Vec3> polygon(const Json& j, size_t count, const Eigen::Affine3d& toWorld, const Where& w) {
+    if (!j.is_array() || j.size() != count) w.fail(cat("expected an array of ", count, " vertices [x, y, z]"));
+    std::vector<Vec3> v;
+    for (size_t k = 0; k < count; ++k) {
+        v.push_back(toWorld * vec3(j[k], w.index(k)));
+        checkCoordinate(v.back(), w.index(k));
+    }
+    return v;
+}
+
+void checkQuad(const std::vector<Vec3>& v, const Where& w) {
+    const double diag = std::max((v[2] - v[0]).norm(), (v[3] - v[1]).norm());
+    const Vec3 n = (v[1] - v[0]).cross(v[2] - v[0]);
+    const Vec3 n2 = (v[2] - v[0]).cross(v[3] - v[0]);
+    if (diag == 0 || n.norm() <= 1e-12 * diag * diag || n2.norm() <= 1e-12 * diag * diag)
+        w.fail("degenerate quad: three of its vertices are collinear or coincide");
+    const double off = std::abs(n.normalized().dot(v[3] - v[0]));
+    if (off > 0.01 * diag)
+        w.fail(cat("quad is not planar: its fourth vertex lies ", 100 * off / diag,
+                   "% of the longest diagonal off the plane of the first three (at most 1%)"));
+    // Every corner must turn the same way: a bow-tie or a dart would fold its patches.
+    const Vec3 ref = n + n2;
+    for (int k = 0; k < 4; ++k) {
+        const Vec3 e0 = v[(k + 1) % 4] - v[k], e1 = v[(k + 2) % 4] - v[(k + 1) % 4];
+        if (e0.cross(e1).dot(ref) <= 0) w.fail("quad is not convex (or its vertices are not in order around it)");
+    }
+}
+
+void checkTriangle(const std::vector<Vec3>& v, const Where& w) {
+    const double edge = std::max({(v[1] - v[0]).norm(), (v[2] - v[1]).norm(), (v[0] - v[2]).norm()});
+    const double area2 = (v[1] - v[0]).cross(v[2] - v[0]).norm();
+    if (edge == 0 || area2 <= 1e-12 * edge * edge) w.fail("zero-area triangle: its vertices are collinear or coincide");
+}
+
+Camera parseCameraJson(const Json& j, double unitScale, const Where& w) {
+    checkKeys(j, w, {"position", "look_at", "up", "fov_y_deg", "resolution"});
+    Camera c;
+    c.position = unitScale * vec3(require(j, "position", w), w.at("position"));
+    c.lookAt = unitScale * vec3(require(j, "look_at", w), w.at("look_at"));
+    if (j.contains("up")) c.up = vec3(j["up"], w.at("up"));
+    if (j.contains("fov_y_deg")) c.fovYDeg = number(j["fov_y_deg"], w.at("fov_y_deg"));
+    checkCoordinate(c.position, w.at("position"));
+    const Vec3 forward = c.lookAt - c.position;
+    if (forward.norm() == 0) w.at("look_at").fail("look_at equals position: the camera has no direction");
+    if (c.up.norm() == 0 || forward.normalized().cross(c.up.normalized()).norm() < 1e-6)
+        w.at("up").fail("up is zero or parallel to the viewing direction");
+    if (!(c.fovYDeg > 0 && c.fovYDeg < 180)) w.at("fov_y_deg").fail(cat("expected a field of view in (0, 180) degrees, got ", c.fovYDeg));
+    if (j.contains("resolution")) {
+        const Json& r = j["resolution"];
+        const Where wr = w.at("resolution");
+        if (!r.is_array() || r.size() != 2 || !r[0].is_number_integer() || !r[1].is_number_integer())
+            wr.fail("expected [width, height] as two integers");
+        c.width = r[0].get<int>();
+        c.height = r[1].get<int>();
+        if (c.width < 1 || c.height < 1 || c.width > 16384 || c.height > 16384)
+            wr.fail(cat("width and height must lie in [1, 16384], got ", c.width, "x", c.height));
+    }
+    return c;
+}
+
+}  // namespace
+
+bool Scene::hasEmitter() const {
+    for (const auto& o : objects)
+        if (materialOf(o).emits()) return true;
+    return false;
+}
+
+bool Scene::hasSpecular() const {
+    for (const auto& o : objects)
+        if (materialOf(o).type != MaterialType::Diffuse) return true;
+    return false;
+}
+
+Camera parseCamera(const std::string& text, double unitScale, const std::string& where) {
+    Json j;
+    try {
+        j = Json::parse(text);
+    } catch (const Json::parse_error& e) {
+        throw Error(cat(where, ": not valid JSON: ", e.what()));
+    }
+    return parseCameraJson(j, unitScale, Where{where, ""});
+}
+
+Scene loadScene(const std::string& path) {
+    const std::string text = readFile(path, "scene file");
+    Json root;
+    try {
+        root = Json::parse(text);
+    } catch (const Json::parse_error& e) {
+        size_t line = 1, col = 1;
+        for (size_t i = 0; i + 1 < e.byte && i < text.size(); ++i) {
+            if (text[i] == '\n') ++line, col = 1;
+            else ++col;
+        }
+        std::string what = e.what();
+        const auto p = what.find("syntax error");
+        throw Error(cat(path, ":", line, ":", col, ": malformed JSON: ", p == std::string::npos ? what : what.substr(p)));
+    }
+    const Where top{path, ""};
+    checkKeys(root, top, {"unit_scale", "materials", "objects", "camera"});
+
+    Scene scene;
+    scene.path = path;
+    scene.fingerprint = fnv1a(text);
+    if (root.contains("unit_scale")) {
+        scene.unitScale = number(root["unit_scale"], top.at("unit_scale"));
+        if (!(scene.unitScale > 0)) top.at("unit_scale").fail("must be positive");
+    }
+
+    const Json& mats = require(root, "materials", top);
+    if (!mats.is_object()) top.at("materials").fail("expected an object mapping names to materials");
+    for (const auto& item : mats.items()) {
+        if (ignoredKey(item.key())) continue;
+        scene.materials.push_back(parseMaterial(item.key(), item.value(), top.at("materials").at(item.key())));
+    }
+
+    const Json& objs = require(root, "objects", top);
+    if (!objs.is_array()) top.at("objects").fail("expected an array of objects");
+    const std::filesystem::path sceneDir = std::filesystem::path(path).parent_path();
+    std::set<std::string> names;
+    for (size_t i = 0; i < objs.size(); ++i) {
+        const Json& j = objs[i];
+        std::string name;
+        if (j.is_object() && j.contains("name") && j["name"].is_string()) name = j["name"].get<std::string>();
+        const Where w = top.at("objects").index(i, name);
+        if (!j.is_object()) w.fail("expected an object");
+        if (!j.contains("name")) w.fail("missing required field 'name'");
+        if (!j["name"].is_string() || name.empty()) w.at("name").fail("expected a non-empty string");
+        if (!names.insert(name).second) w.at("name").fail(cat("duplicate object name '", name, "'"));
+
+        SceneObject o;
+        o.name = name;
+        const Json& type = require(j, "type", w);
+        if (!type.is_string()) w.at("type").fail("expected a string");
+        const std::string t = type.get<std::string>();
+        const Json& matName = require(j, "material", w);
+        if (!matName.is_string()) w.at("material").fail("expected a material name");
+        for (size_t m = 0; m < scene.materials.size(); ++m)
+            if (scene.materials[m].name == matName.get<std::string>()) o.material = int(m);
+        if (o.material < 0) w.at("material").fail(cat("unknown material '", matName.get<std::string>(), "'"));
+
+        const Eigen::Affine3d scale(Eigen::Scaling(scene.unitScale));
+        o.toWorld = scale * (j.contains("transform") ? parseTransform(j["transform"], w.at("transform"))
+                                                     : Eigen::Affine3d::Identity());
+        if (t == "quad") {
+            checkKeys(j, w, {"name", "type", "material", "vertices", "transform"});
+            o.type = ShapeType::Quad;
+            o.vertices = polygon(require(j, "vertices", w), 4, o.toWorld, w.at("vertices"));
+            checkQuad(o.vertices, w.at("vertices"));
+        } else if (t == "triangle") {
+            checkKeys(j, w, {"name", "type", "material", "vertices", "transform"});
+            o.type = ShapeType::Triangle;
+            o.vertices = polygon(require(j, "vertices", w), 3, o.toWorld, w.at("vertices"));
+            checkTriangle(o.vertices, w.at("vertices"));
+        } else if (t == "sphere") {
+            checkKeys(j, w, {"name", "type", "material", "center", "radius", "transform"});
+            o.type = ShapeType::Sphere;
+            o.center = vec3(require(j, "center", w), w.at("center"));
+            o.radius = number(require(j, "radius", w), w.at("radius"));
+            if (!(o.radius > 0)) w.at("radius").fail(cat("radius must be positive, got ", o.radius));
+            checkCoordinate(o.toWorld * o.center, w.at("center"));
+            if (o.radius * scene.unitScale > kAbsurdMetres) w.at("radius").fail("radius is absurdly large: check unit_scale");
+        } else if (t == "mesh") {
+            checkKeys(j, w, {"name", "type", "material", "file", "transform"});
+            o.type = ShapeType::Mesh;
+            const Json& file = require(j, "file", w);
+            if (!file.is_string()) w.at("file").fail("expected a path");
+            o.file = (sceneDir / file.get<std::string>()).string();
+            o.mesh = readPolygonSoup(o.file, w.at("file").path);
+            for (auto& v : o.mesh.vertices) {
+                v = o.toWorld * v;
+                checkCoordinate(v, w.at("file"));
+            }
+            scene.fingerprint = fnv1a(readFile(o.file, "mesh file"), scene.fingerprint);
+        } else {
+            w.at("type").fail(cat("unknown object type '", t, "' (expected quad, triangle, mesh or sphere)"));
+        }
+        scene.objects.push_back(std::move(o));
+    }
+    if (scene.objects.empty()) top.at("objects").fail("the scene is empty: it has no objects");
+
+    if (root.contains("camera")) {
+        scene.camera = parseCameraJson(root["camera"], scene.unitScale, top.at("camera"));
+        scene.hasCamera = true;
+    }
+    if (!scene.hasEmitter())
+        logWarning(path, ": no material emits light: every radiosity will be zero (a black answer)");
+    return scene;
+}
+
+}  // namespace penumbra

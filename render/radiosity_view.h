@@ -1,0 +1,28 @@
+// The plain view of a solved scene: primary rays through each pixel (stratified, a one-pixel box
+// filter) show the interpolated vertex radiosity as radiance B / pi on diffuse front faces; back
+// faces, and for now mirrors and glass, are black.
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include "mesh/patches.h"
+#include "mesh/scene.h"
+#include "render/image.h"
+#include "solver/visibility.h"
+
+namespace penumbra {
+
+struct ViewSettings {
+    int samplesPerPixel = 4;
+    uint64_t seed = 1;
+};
+
+Image renderRadiosityView(const Scene& scene, const Camera& camera, const PatchSet& patches, const RayScene& rays,
+                          const std::vector<std::array<Rgb, 4>>& cornerRadiosity, const ViewSettings& settings);
+
+// Radiosity at parameters (u, v) of a patch hit, from its corner values (Embree's quad coordinates;
+// barycentric on triangles).
+Rgb interpolateAt(const PatchSet& patches, size_t patch, double u, double v, const std::array<Rgb, 4>& corner);
+
+}  // namespace penumbra

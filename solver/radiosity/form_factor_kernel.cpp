@@ -1,0 +1,109 @@
+#include "solver/radiosity/form_factor_kernel.h"
+
+#include <cmath>
+
+namespace penumbra {
+
+double pointPolygonFormFactor(const Vec3& x, const Vec3& n, const Vec3* poly, int count) {
+    // Clip to the half-space n . (p - x) > 0: only what lies in front of x is seen.
+    Vec3 clipped[8];
+    int m = 0;
+    for (int k = 0; k < count; ++k) {
+        const Vec3& a = poly[k];
+        const Vec3& b = poly[(k + 1) % count];
+        const double da = n.dot(a - x), db = n.dot(b - x);
+        if (da > 0) clipped[m++] = a;
+        if ((da > 0) != (db > 0)) clipped[m++] = a + (da / (da - db)) * (b - a);
+    }
+    if (m < 3) return 0;
+    // Lambert: F = 1/(2 pi) sum_k gamma_k n . (R_k x R_k+1) / |R_k x R_k+1|.
+    double sum = 0;
+    Vec3 ra = (clipped[0] - x).normalized();
+    for (int k = 0; k < m; ++k) {
+        const Vec3 rb = (clipped[(k + 1) % m] - x).normalized();
+        const Vec3 c = ra.cross(rb);
+        const double s = c.norm();
+        if (s > 1e-300) sum += n.dot(c) / s * std::atan2(s, ra.dot(rb));
+        ra = rb;
+    }
+    return std::abs(sum) / (2 * kPi);
+}
+
+double pointPolygonDistance(const Vec3& x, const Vec3* poly, int count) {
+    const Vec3 normal = (poly[1] - poly[0]).cross(poly[2] - poly[0]) + (count == 4 ? (poly[2] - poly[0]).cross(poly[3] - poly[0]) : Vec3::Zero());
+    const Vec3 nn = normal.normalized();
+    const double height = nn.dot(x - poly[0]);
+    const Vec3 projected = x - height * nn;
+    bool inside = true;
+    for (int k = 0; k < count && inside; ++k)
+        inside = (poly[(k + 1) % count] - poly[k]).cross(projected - poly[k]).dot(nn) >= 0;
+    if (inside) return std::abs(height);
+    double best = 1e300;
+    for (int k = 0; k < count; ++k) {
+        const Vec3& a = poly[k];
+        const Vec3 e = poly[(k + 1) % count] - a;
+        const double t = std::clamp(e.dot(x - a) / std::max(e.squaredNorm(), 1e-300), 0.0, 1.0);
+        best = std::min(best, (x - (a + t * e)).norm());
+    }
+    return best;
+}
+
+namespace {
+
+// Gauss-Legendre nodes and weights on [0, 1] for 1, 2 and 3 points.
+constexpr double kG2 = 0.2886751345948129;    // 0.5 / sqrt(3)
+constexpr double kG3 = 0.3872983346207417;    // 0.5 * sqrt(3/5)
+const double kNodes[3][3] = {{0.5, 0, 0}, {0.5 - kG2, 0.5 + kG2, 0}, {0.5 - kG3, 0.5, 0.5 + kG3}};
+const double kWeights[3][3] = {{1, 0, 0}, {0.5, 0.5, 0}, {5.0 / 18, 8.0 / 18, 5.0 / 18}};
+
+struct Cubature {
+    const PatchSet& patches;
+    size_t s;
+    const Vec3* poly;
+    int count;
+    double sourceRadius;
+    double tolerance;
+    int maxDepth;
+    uint64_t evaluations = 0;
+
+    double cell(double u0, double v0, double size, int depth) {
+        const Vec3 centre = patches.pointAt(s, u0 + size / 2, v0 + size / 2);
+        const double diameter = 2 * sourceRadius * size;
+        const double distance = pointPolygonDistance(centre, poly, count);
+        int order = 0;
+        if (distance > 0) {
+            const double half = diameter / (2 * distance);
+            for (int g = 1; g <= 3 && order == 0; ++g)
+                if (std::pow(half, 2 * g) <= tolerance) order = g;
+        }
+        if (order == 0 && depth < maxDepth) {
+            const double h = size / 2;
+            return cell(u0, v0, h, depth + 1) + cell(u0 + h, v0, h, depth + 1) + cell(u0, v0 + h, h, depth + 1) +
+                   cell(u0 + h, v0 + h, h, depth + 1);
+        }
+        if (order == 0) order = 3;
+        const Vec3& n = patches.normal[s];
+        double sum = 0;
+        for (int a = 0; a < order; ++a)
+            for (int b = 0; b < order; ++b) {
+                const double u = u0 + size * kNodes[order - 1][a], v = v0 + size * kNodes[order - 1][b];
+                const double w = kWeights[order - 1][a] * kWeights[order - 1][b] * size * size;
+                sum += w * patches.jacobian(s, u, v) * pointPolygonFormFactor(patches.pointAt(s, u, v), n, poly, count);
+            }
+        evaluations += uint64_t(order * order);
+        return sum;
+    }
+};
+
+}  // namespace
+
+double unoccludedAreaFactor(const PatchSet& patches, size_t s, size_t r, const CubatureSettings& settings,
+                            uint64_t* evaluations) {
+    Cubature c{patches, s, patches.corners[r].data(), patches.cornerCount[r], patches.boundingRadius(s),
+               settings.tolerance, settings.maxDepth};
+    const double value = c.cell(0, 0, 1, 0);
+    if (evaluations) *evaluations += c.evaluations;
+    return value;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,35 @@
+// Unoccluded form factors. The inner integral over the receiving polygon is analytic (Lambert's
+// contour formula); the outer integral over the sending patch is a Gauss-Legendre cubature whose
+// cells are split where the receiver is close compared with the cell's size, so that near and
+// touching patches are integrated as accurately as distant ones (docs/form-factors.md).
+#pragma once
+
+#include <cstdint>
+
+#include "core/math.h"
+#include "mesh/patches.h"
+
+namespace penumbra {
+
+// Form factor from a differential area at x (unit normal n) to the planar convex polygon `poly`
+// (3 or 4 vertices, either winding), clipped to the half-space in front of x. Dimensionless.
+double pointPolygonFormFactor(const Vec3& x, const Vec3& n, const Vec3* poly, int count);
+
+// Distance from x to a convex planar polygon (3 or 4 vertices).
+double pointPolygonDistance(const Vec3& x, const Vec3* poly, int count);
+
+struct CubatureSettings {
+    // Target relative error of one patch-to-patch factor: picks the Gauss order (1, 2 or 3 points per
+    // axis) from the cell-size-to-distance ratio q by the bound (q/2)^(2 order), and splits cells for
+    // which order 3 is not enough.
+    double tolerance = 1e-6;
+    int maxDepth = 9;   // cells along a shared edge end at 2^-maxDepth of the patch
+};
+
+// A_s * F(s -> r): the unoccluded factor from patch s to patch r times s's area (m^2). Symmetric in
+// exact arithmetic (reciprocity); integrate over the smaller patch for accuracy.
+// `evaluations` counts kernel calls.
+double unoccludedAreaFactor(const PatchSet& patches, size_t s, size_t r, const CubatureSettings& settings,
+                            uint64_t* evaluations = nullptr);
+
+}  // namespace penumbra

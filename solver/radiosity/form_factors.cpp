@@ -1,0 +1,131 @@
+#include "solver/radiosity/form_factors.h"
+
+#include <atomic>
+#include <mutex>
+
+#include "core/log.h"
+#include "core/parallel.h"
+#include "core/progress.h"
+#include "core/rng.h"
+#include "core/timer.h"
+
+namespace penumbra {
+namespace {
+
+// Whether any part of patch b lies strictly in front of patch a's plane.
+bool inFront(const PatchSet& p, size_t a, size_t b) {
+    const double eps = 1e-9 * (p.boundingRadius(a) + p.boundingRadius(b));
+    for (int k = 0; k < p.cornerCount[b]; ++k)
+        if (p.normal[a].dot(p.corners[b][size_t(k)] - p.centroid[a]) > eps) return true;
+    return false;
+}
+
+// A point of patch i in stratum k of a sqrt(m) x sqrt(m) grid (m a square), jittered.
+Vec3 stratifiedPoint(const PatchSet& p, size_t i, int k, int side, Rng& rng) {
+    const double u = ((k % side) + rng.uniform()) / side, v = ((k / side) + rng.uniform()) / side;
+    // Sample by area: on triangles the collapsed map needs u = sqrt(.) to be uniform.
+    if (p.isTriangle(i)) return p.pointAt(i, std::sqrt(u), v);
+    // Quads are near-parallelograms, where the bilinear map is area-uniform.
+    return p.pointAt(i, u, v);
+}
+
+struct Visibility {
+    double fraction;
+    int rays;
+};
+
+// Fraction of segments between the two patches that nothing blocks: `base` stratified rays, then
+// four times as many when the first ones disagree (a shadow boundary crosses the pair).
+Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, size_t b, int base, uint64_t seed) {
+    Rng rng(mixSeed(seed, a, b));
+    auto cast = [&](int count) {
+        int side = 1;
+        while (side * side < count) ++side;
+        int visible = 0;
+        for (int k = 0; k < count; ++k) {
+            const int sa = k % (side * side), sb = (k * 7 + 3) % (side * side);   // decorrelated strata
+            const Vec3 from = stratifiedPoint(p, a, sa, side, rng), to = stratifiedPoint(p, b, sb, side, rng);
+            visible += !scene.occluded(from, to);
+        }
+        return visible;
+    };
+    const int first = cast(base);
+    if (first == 0 || first == base) return {double(first) / base, base};
+    const int more = cast(3 * base);
+    return {double(first + more) / (4 * base), 4 * base};
+}
+
+}  // namespace
+
+FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& scene, const FormFactorSettings& settings) {
+    Timer timer;
+    const size_t n = patches.size();
+    FormFactorMatrix F(n);
+    std::atomic<uint64_t> pairs{0}, evaluations{0}, rays{0}, partial{0}, occluded{0};
+    std::mutex backMutex;
+    Progress progress("form factors", int64_t(n) * int64_t(n - 1) / 2);
+    parallelFor(int64_t(n), [&](int64_t begin, int64_t end) {
+        prepareTracingThread();
+        uint64_t myPairs = 0, myEvaluations = 0, myRays = 0, myPartial = 0, myOccluded = 0;
+        std::vector<BackTransfer> myBack;
+        for (int64_t ii = begin; ii < end; ++ii) {
+            const size_t i = size_t(ii);
+            for (size_t j = i + 1; j < n; ++j) {
+                const bool jFrontOfI = inFront(patches, i, j), iFrontOfJ = inFront(patches, j, i);
+                if (!jFrontOfI && !iFrontOfJ) continue;
+                ++myPairs;
+                const Visibility vis = visibleFraction(patches, scene, i, j, settings.visibilityRays,
+                                                       settings.seed);
+                myRays += uint64_t(vis.rays);
+                if (vis.fraction == 0) {
+                    ++myOccluded;
+                    continue;
+                }
+                if (vis.fraction < 1) ++myPartial;
+                // Integrate over the smaller patch, analytically over the larger.
+                const bool iSmaller = patches.area[i] <= patches.area[j];
+                const double g = vis.fraction * unoccludedAreaFactor(patches, iSmaller ? i : j, iSmaller ? j : i,
+                                                                     settings.cubature, &myEvaluations);
+                if (jFrontOfI && iFrontOfJ) {
+                    F(i, j) = float(g / patches.area[i]);
+                    F(j, i) = float(g / patches.area[j]);
+                } else if (jFrontOfI) {
+                    myBack.push_back({int(i), int(j), g});
+                } else {
+                    myBack.push_back({int(j), int(i), g});
+                }
+            }
+            progress.update(int64_t(n - i - 1));
+        }
+        pairs += myPairs;
+        evaluations += myEvaluations;
+        rays += myRays;
+        partial += myPartial;
+        occluded += myOccluded;
+        std::lock_guard<std::mutex> lock(backMutex);
+        F.backTransfers.insert(F.backTransfers.end(), myBack.begin(), myBack.end());
+    });
+    progress.done();
+    // Thread scheduling decides the order of the merge; sort so the result is reproducible.
+    std::sort(F.backTransfers.begin(), F.backTransfers.end(), [](const BackTransfer& a, const BackTransfer& b) {
+        return a.from != b.from ? a.from < b.from : a.to < b.to;
+    });
+    F.stats = {pairs, evaluations, rays, partial, occluded, timer.seconds()};
+    logInfo("form factors: ", n, " patches, ", F.stats.pairs, " facing pairs (", F.stats.occluded, " occluded, ",
+            F.stats.partiallyVisible, " partly visible), ", F.stats.rays, " rays, ", F.stats.kernelEvaluations,
+            " kernel evaluations in ", F.stats.seconds, " s");
+    return F;
+}
+
+std::vector<double> rowSums(const FormFactorMatrix& F) {
+    std::vector<double> sums(F.size(), 0.0);
+    for (size_t i = 0; i < F.size(); ++i) {
+        const float* r = F.row(i);
+        double s = 0;
+        for (size_t j = 0; j < F.size(); ++j) s += r[j];
+        sums[i] = s;
+    }
+    return sums;
+}
+
+}  // namespace penumbra

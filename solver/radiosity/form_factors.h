@@ -1,0 +1,62 @@
+// The form-factor matrix: F(i, j), the fraction of the light leaving patch i's front face that
+// arrives at patch j's front face, for all pairs, with Embree-tested visibility. Stored dense,
+// row-major, in float: A_i F(i,j) = A_j F(j,i) holds to float rounding because both come from one
+// symmetric area factor. Light that reaches a back face (black, absorbing) is kept aside in
+// `backTransfers` so the power balance can count it.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "mesh/patches.h"
+#include "solver/radiosity/form_factor_kernel.h"
+#include "solver/visibility.h"
+
+namespace penumbra {
+
+struct FormFactorSettings {
+    CubatureSettings cubature;
+    int visibilityRays = 4;       // per pair; pairs found partly visible get 4x as many
+    uint64_t seed = 1;
+};
+
+struct BackTransfer {
+    int from, to;      // light leaving `from`'s front arrives at `to`'s back
+    double areaFactor; // A_from * F(from -> back of to), m^2
+};
+
+struct FormFactorStats {
+    uint64_t pairs = 0;            // pairs that face each other (front or back)
+    uint64_t kernelEvaluations = 0;
+    uint64_t rays = 0;
+    uint64_t partiallyVisible = 0;
+    uint64_t occluded = 0;
+    double seconds = 0;
+};
+
+class FormFactorMatrix {
+public:
+    FormFactorMatrix() = default;
+    explicit FormFactorMatrix(size_t n) : n_(n), values_(n * n, 0.0f) {}
+    size_t size() const { return n_; }
+    float operator()(size_t i, size_t j) const { return values_[i * n_ + j]; }
+    float& operator()(size_t i, size_t j) { return values_[i * n_ + j]; }
+    const float* row(size_t i) const { return values_.data() + i * n_; }
+
+    std::vector<BackTransfer> backTransfers;
+    FormFactorStats stats;
+
+private:
+    size_t n_ = 0;
+    std::vector<float> values_;
+};
+
+// Bytes the dense matrix of n patches needs.
+inline uint64_t formFactorMatrixBytes(uint64_t n) { return n * n * sizeof(float); }
+
+FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings);
+
+// The row sums sum_j F(i, j) (front faces only), in double.
+std::vector<double> rowSums(const FormFactorMatrix& F);
+
+}  // namespace penumbra

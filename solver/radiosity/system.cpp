@@ -1,0 +1,76 @@
+#include "solver/radiosity/system.h"
+
+#include "core/parallel.h"
+
+namespace penumbra {
+
+RadiositySystem buildSystem(const Scene& scene, const PatchSet& patches) {
+    RadiositySystem s;
+    s.area = patches.area;
+    s.reflectance.resize(patches.size());
+    s.emission.resize(patches.size());
+    for (size_t i = 0; i < patches.size(); ++i) {
+        const Material& m = scene.materialOf(scene.objects[size_t(patches.object[i])]);
+        const bool diffuse = m.type == MaterialType::Diffuse;
+        s.reflectance[i] = diffuse ? m.reflectance : Rgb::Zero();
+        s.emission[i] = diffuse ? Rgb(kPi * m.emission) : Rgb::Zero();
+    }
+    return s;
+}
+
+std::vector<Rgb> gatherIrradiance(const FormFactorMatrix& F, const std::vector<Rgb>& B) {
+    const size_t n = F.size();
+    std::vector<Rgb> H(n);
+    parallelFor(int64_t(n), [&](int64_t begin, int64_t end) {
+        for (int64_t i = begin; i < end; ++i) {
+            const float* row = F.row(size_t(i));
+            double h0 = 0, h1 = 0, h2 = 0;
+            for (size_t j = 0; j < n; ++j) {
+                const double f = row[j];
+                h0 += f * B[j][0];
+                h1 += f * B[j][1];
+                h2 += f * B[j][2];
+            }
+            H[size_t(i)] = Rgb(h0, h1, h2);
+        }
+    }, 16);
+    return H;
+}
+
+double relativeResidual(const RadiositySystem& s, const std::vector<Rgb>& B, const std::vector<Rgb>& H) {
+    double r = 0, e = 0;
+    for (size_t i = 0; i < s.size(); ++i) {
+        r += s.area[i] * (s.emission[i] + s.reflectance[i] * H[i] - B[i]).abs().sum();
+        e += s.area[i] * s.emission[i].sum();
+    }
+    return e > 0 ? r / e : 0;
+}
+
+PowerBalance powerBalance(const RadiositySystem& s, const FormFactorMatrix& F, const std::vector<Rgb>& B) {
+    const size_t n = s.size();
+    const std::vector<Rgb> H = gatherIrradiance(F, B);
+    PowerBalance p;
+    p.emitted.resize(n);
+    p.absorbed.resize(n);
+    Rgb leaving = Rgb::Zero(), arriving = Rgb::Zero();
+    for (size_t i = 0; i < n; ++i) {
+        p.emitted[i] = s.area[i] * s.emission[i];
+        p.absorbed[i] = s.area[i] * (1 - s.reflectance[i]) * H[i];
+        leaving += s.area[i] * B[i];
+        arriving += s.area[i] * H[i];
+    }
+    for (const BackTransfer& t : F.backTransfers) {
+        const Rgb power = t.areaFactor * B[size_t(t.from)];
+        p.absorbed[size_t(t.to)] += power;
+        arriving += power;
+    }
+    for (size_t i = 0; i < n; ++i) {
+        p.totalEmitted += p.emitted[i];
+        p.totalAbsorbed += p.absorbed[i];
+    }
+    // What leaves the surfaces and arrives at none of them has left the scene.
+    p.escaped = leaving - arriving;
+    return p;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,40 @@
+// The radiosity system B = E + diag(rho) F B per colour channel, in exitance (W/m^2). Mirrors and
+// glass enter with rho = 0 until the specular transport of the final-gather issue: they occlude and
+// absorb what reaches them, so the power balance still closes.
+#pragma once
+
+#include <vector>
+
+#include "core/math.h"
+#include "mesh/patches.h"
+#include "mesh/scene.h"
+#include "solver/radiosity/form_factors.h"
+
+namespace penumbra {
+
+struct RadiositySystem {
+    std::vector<double> area;        // m^2
+    std::vector<Rgb> reflectance;    // diffuse albedo of the front face
+    std::vector<Rgb> emission;       // exitance E = pi L_e of the front face, W/m^2
+
+    size_t size() const { return area.size(); }
+};
+
+RadiositySystem buildSystem(const Scene& scene, const PatchSet& patches);
+
+// Irradiance H_i = sum_j F(i,j) B_j arriving at every front face, W/m^2.
+std::vector<Rgb> gatherIrradiance(const FormFactorMatrix& F, const std::vector<Rgb>& B);
+
+// Relative residual: sum_i A_i |E_i + rho_i H_i - B_i| over sum_i A_i E_i, all channels together.
+// It is the fraction of the emitted power not yet accounted for (the unshot power).
+double relativeResidual(const RadiositySystem& system, const std::vector<Rgb>& B, const std::vector<Rgb>& H);
+
+// Where the power goes for a given B: per patch, what it emits and absorbs (front and back), and
+// in all what leaves the scene. W per channel.
+struct PowerBalance {
+    std::vector<Rgb> emitted, absorbed;
+    Rgb totalEmitted = Rgb::Zero(), totalAbsorbed = Rgb::Zero(), escaped = Rgb::Zero();
+};
+PowerBalance powerBalance(const RadiositySystem& system, const FormFactorMatrix& F, const std::vector<Rgb>& B);
+
+}  // namespace penumbra

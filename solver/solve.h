@@ -1,0 +1,41 @@
+// The view-independent solve, end to end: mesh the scene, build the ray scene, compute the form
+// factors, solve, and account for the power. Stage timings and counters go into the report.
+#pragma once
+
+#include <string>
+
+#include "mesh/patches.h"
+#include "mesh/scene.h"
+#include "solver/radiosity/form_factors.h"
+#include "solver/radiosity/solvers.h"
+#include "solver/radiosity/system.h"
+
+namespace penumbra {
+
+struct SolveOptions {
+    MeshingOptions meshing;
+    FormFactorSettings formFactors;
+    std::string solver = "gauss-seidel";
+    SolverSettings solverSettings;
+    double maxMemoryBytes = 0;   // 0: what the machine has available
+};
+
+struct SolveResult {
+    std::string solverName;
+    PatchSet patches;
+    FormFactorMatrix F;
+    RadiositySystem system;
+    RadiositySolution solution;
+    PowerBalance power;
+    double secondsMeshing = 0, secondsFormFactors = 0, secondsSolve = 0;
+    double rowSumMin = 0, rowSumMax = 0;   // front-face row sums (closed scenes: 1 within error)
+};
+
+SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer = {});
+
+// Bytes of memory available to this process (MemAvailable), or 0 if unknown.
+double availableMemoryBytes();
+// Peak resident memory of this process so far, bytes.
+double peakMemoryBytes();
+
+}  // namespace penumbra

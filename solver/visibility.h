@@ -1,0 +1,42 @@
+// Ray queries against the patch geometry: the only module that sees Embree. One scene of quads
+// (triangles repeat their last corner), committed once; primitive id == patch index. Both faces of
+// every patch occlude. Embree errors become Error exceptions with context.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+
+#include "core/math.h"
+#include "mesh/patches.h"
+
+namespace penumbra {
+
+struct Hit {
+    int patch = -1;          // -1: the ray escaped
+    double t = 0;
+    double u = 0, v = 0;     // Embree's primitive coordinates (quad parametrisation)
+    Vec3 geometricNormal;    // unnormalised, as Embree reports it
+};
+
+class RayScene {
+public:
+    explicit RayScene(const PatchSet& patches);
+    ~RayScene();
+    RayScene(const RayScene&) = delete;
+    RayScene& operator=(const RayScene&) = delete;
+
+    // True if anything blocks the open segment from `from` to `to`, trimmed at both ends by
+    // `trim` (a fraction of its length) so the endpoints' own patches do not count.
+    bool occluded(const Vec3& from, const Vec3& to, double trim = 1e-5) const;
+    // Nearest hit along origin + t * dir, t in (tMin, tMax).
+    Hit intersect(const Vec3& origin, const Vec3& dir, double tMin = 0, double tMax = 1e30) const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+// Sets the flush-to-zero and denormals-are-zero flags Embree wants in every tracing thread.
+void prepareTracingThread();
+
+}  // namespace penumbra
