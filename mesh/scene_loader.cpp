@@ -256,6 +256,12 @@ Scene loadScene(const std::string& path) {
         std::string what = e.what();
         const auto p = what.find("syntax error");
         throw Error(cat(path, ":", line, ":", col, ": malformed JSON: ", p == std::string::npos ? what : what.substr(p)));
+    } catch (const Json::out_of_range& e) {
+        // The parser's only range error: a literal beyond double precision, such as 1e999.
+        std::string what = e.what();
+        const auto p = what.find("number overflow");
+        throw Error(cat(path, ": malformed JSON: ", p == std::string::npos ? what : what.substr(p),
+                        " (numbers must be finite)"));
     }
     const Where top{path, ""};
     checkKeys(root, top, {"unit_scale", "materials", "objects", "camera"});

@@ -39,6 +39,9 @@ RayScene::RayScene(const PatchSet& patches) : impl_(std::make_unique<Impl>()) {
     rtcSetDeviceErrorFunction(impl_->device, embreeError, &impl_->error);
     impl_->scene = rtcNewScene(impl_->device);
     rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
+    // Watertight edges: a ray through the seam of two touching patches must not slip between them
+    // (the classic light leak along wall-floor and wall-ceiling joints).
+    rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
     RTCGeometry geom = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_QUAD);
     const size_t n = patches.size();
     auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,

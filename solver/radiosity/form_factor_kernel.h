@@ -22,7 +22,7 @@ struct CubatureSettings {
     // Target relative error of one patch-to-patch factor: picks the Gauss order (1, 2 or 3 points per
     // axis) from the cell-size-to-distance ratio q by the bound (q/2)^(2 order), and splits cells for
     // which order 3 is not enough.
-    double tolerance = 1e-6;
+    double tolerance = 1e-5;
     int maxDepth = 9;   // cells along a shared edge end at 2^-maxDepth of the patch
 };
 

@@ -20,13 +20,17 @@ bool inFront(const PatchSet& p, size_t a, size_t b) {
     return false;
 }
 
-// A point of patch i in stratum k of a sqrt(m) x sqrt(m) grid (m a square), jittered.
+// A point of patch i in stratum k of a side x side grid, jittered. Points keep a margin of 1e-3 of
+// the patch from its edges: a segment from a point exactly on an edge can graze along a seam (the
+// top edge of a wall, a wall-ceiling joint) in float precision and slip past a thin occluder.
 Vec3 stratifiedPoint(const PatchSet& p, size_t i, int k, int side, Rng& rng) {
+    constexpr double kMargin = 1e-3;
+    auto inset = [](double t) { return kMargin + (1 - 2 * kMargin) * t; };
     const double u = ((k % side) + rng.uniform()) / side, v = ((k / side) + rng.uniform()) / side;
     // Sample by area: on triangles the collapsed map needs u = sqrt(.) to be uniform.
-    if (p.isTriangle(i)) return p.pointAt(i, std::sqrt(u), v);
+    if (p.isTriangle(i)) return p.pointAt(i, inset(std::sqrt(u)), inset(v));
     // Quads are near-parallelograms, where the bilinear map is area-uniform.
-    return p.pointAt(i, u, v);
+    return p.pointAt(i, inset(u), inset(v));
 }
 
 struct Visibility {
@@ -34,17 +38,27 @@ struct Visibility {
     int rays;
 };
 
+// How far segment endpoints are lifted off their patches, towards the face that takes part: enough
+// that a segment arriving at a grazing angle is not stopped by its own endpoint patch in float
+// precision, far below any real gap between surfaces.
+double liftDistance(const PatchSet& p, size_t i) {
+    return 1e-4 * p.boundingRadius(i) + 1e-6 * p.centroid[i].cwiseAbs().maxCoeff();
+}
+
 // Fraction of segments between the two patches that nothing blocks: `base` stratified rays, then
-// four times as many when the first ones disagree (a shadow boundary crosses the pair).
-Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, size_t b, int base, uint64_t seed) {
+// four times as many when the first ones disagree (a shadow boundary crosses the pair). The
+// endpoints are lifted off the faces that exchange light: sideA, sideB = +1 front, -1 back.
+Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, size_t b, int sideA, int sideB,
+                           int base, uint64_t seed) {
     Rng rng(mixSeed(seed, a, b));
+    const Vec3 liftA = sideA * liftDistance(p, a) * p.normal[a], liftB = sideB * liftDistance(p, b) * p.normal[b];
     auto cast = [&](int count) {
         int side = 1;
         while (side * side < count) ++side;
         int visible = 0;
         for (int k = 0; k < count; ++k) {
             const int sa = k % (side * side), sb = (k * 7 + 3) % (side * side);   // decorrelated strata
-            const Vec3 from = stratifiedPoint(p, a, sa, side, rng), to = stratifiedPoint(p, b, sb, side, rng);
+            const Vec3 from = stratifiedPoint(p, a, sa, side, rng) + liftA, to = stratifiedPoint(p, b, sb, side, rng) + liftB;
             visible += !scene.occluded(from, to);
         }
         return visible;
@@ -74,7 +88,10 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
                 const bool jFrontOfI = inFront(patches, i, j), iFrontOfJ = inFront(patches, j, i);
                 if (!jFrontOfI && !iFrontOfJ) continue;
                 ++myPairs;
-                const Visibility vis = visibleFraction(patches, scene, i, j, settings.visibilityRays,
+                // Which faces exchange light: front-front, or one front to the other's back.
+                const int sideI = iFrontOfJ ? (jFrontOfI ? 1 : -1) : 1;
+                const int sideJ = jFrontOfI ? (iFrontOfJ ? 1 : -1) : 1;
+                const Visibility vis = visibleFraction(patches, scene, i, j, sideI, sideJ, settings.visibilityRays,
                                                        settings.seed);
                 myRays += uint64_t(vis.rays);
                 if (vis.fraction == 0) {

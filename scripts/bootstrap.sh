@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# Penumbra's set-up on a fresh Debian 12 / Ubuntu machine: installs the Debian packages that are
+# missing, builds, then runs what was asked.
+#   bash scripts/bootstrap.sh cornell   # build, solve the Cornell box, write its picture
+#   bash scripts/bootstrap.sh test      # build, run every test (Release, then ASan+UBSan)
+#   bash scripts/bootstrap.sh build     # build only
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+PACKAGES=(
+  cmake ninja-build g++ pkg-config python3
+  libembree-dev libeigen3-dev libopenimageio-dev openimageio-tools libopenmesh-dev
+  libtbb-dev nlohmann-json3-dev libcli11-dev libgtest-dev
+)
+
+install_missing() {
+  local missing=()
+  for p in "${PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  [ ${#missing[@]} -eq 0 ] && return 0
+  echo "bootstrap: installing ${missing[*]}"
+  local sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+}
+
+build() {  # build DIR [cmake args...]
+  local dir=$1; shift
+  cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=Release -DPENUMBRA_WERROR=ON "$@" >/dev/null
+  cmake --build "$dir" -j "$(nproc)"
+}
+
+case "${1:-}" in
+  build)
+    install_missing
+    build build
+    ;;
+  cornell)
+    install_missing
+    build build
+    ./build/bin/penumbra solve scenes/cornell-box.json --out out/cornell
+    echo "bootstrap: report out/cornell/report.json, picture out/cornell/radiosity.png (linear: radiosity.exr)"
+    ;;
+  test)
+    install_missing
+    build build
+    (cd build && ctest --output-on-failure -j 2 --timeout 900)
+    # The same tests, built with AddressSanitizer and UndefinedBehaviorSanitizer.
+    build build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPENUMBRA_SANITIZE=ON
+    (cd build-sanitize && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+       ctest --output-on-failure -j 2 --timeout 1800 -LE slow)
+    ;;
+  *)
+    echo "usage: bash scripts/bootstrap.sh cornell|test|build" >&2
+    exit 2
+    ;;
+esac

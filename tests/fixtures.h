@@ -1,0 +1,61 @@
+// Test helpers: scenes written from JSON text into a temporary folder and loaded through the real
+// loader, and sums of patch-level results per object.
+#pragma once
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <unistd.h>
+
+#include "core/error.h"
+#include "mesh/scene.h"
+#include "solver/solve.h"
+
+namespace penumbra::test {
+
+inline std::string tempDir() {
+    static const std::string dir = [] {
+        auto d = std::filesystem::temp_directory_path() / ("penumbra-test-" + std::to_string(::getpid()));
+        std::filesystem::create_directories(d);
+        return d.string();
+    }();
+    return dir;
+}
+
+inline std::string writeText(const std::string& name, const std::string& text) {
+    const std::string path = tempDir() + "/" + name;
+    std::ofstream(path) << text;
+    return path;
+}
+
+inline Scene sceneFromJson(const std::string& json, const std::string& name = "scene.json") {
+    return loadScene(writeText(name, json));
+}
+
+// Object-to-object form factor F(a -> b) = sum_{i in a, j in b} A_i F(i,j) / A_a.
+inline double objectFormFactor(const SolveResult& r, int a, int b) {
+    double num = 0, area = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        if (r.patches.object[i] != a) continue;
+        area += r.patches.area[i];
+        for (size_t j = 0; j < r.patches.size(); ++j)
+            if (r.patches.object[j] == b) num += r.patches.area[i] * double(r.F(i, j));
+    }
+    return num / area;
+}
+
+// A unit cube of six inward-facing quads, all of material "m" (given as JSON).
+inline std::string closedCube(const std::string& material) {
+    return R"({"materials": {"m": )" + material + R"(},
+      "objects": [
+        {"name": "bottom", "type": "quad", "material": "m", "vertices": [[0,0,0],[0,0,1],[1,0,1],[1,0,0]]},
+        {"name": "top",    "type": "quad", "material": "m", "vertices": [[0,1,0],[1,1,0],[1,1,1],[0,1,1]]},
+        {"name": "left",   "type": "quad", "material": "m", "vertices": [[0,0,0],[0,1,0],[0,1,1],[0,0,1]]},
+        {"name": "right",  "type": "quad", "material": "m", "vertices": [[1,0,0],[1,0,1],[1,1,1],[1,1,0]]},
+        {"name": "back",   "type": "quad", "material": "m", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]},
+        {"name": "front",  "type": "quad", "material": "m", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}
+      ]})";
+}
+
+}  // namespace penumbra::test

@@ -1,0 +1,165 @@
+// The command line as users and the acceptance checks drive it: every kind of bad input gets one
+// clear error naming the file, object or field, a non-zero exit and no output; good input gets a
+// report that ../shared/tools/check-report accepts.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+
+#include "fixtures.h"
+
+using namespace penumbra;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct CommandResult {
+    int status;
+    std::string output;   // stderr and stdout together
+};
+
+CommandResult run(const std::string& args) {
+    const std::string command = std::string(PENUMBRA_EXE) + " " + args + " 2>&1";
+    FILE* pipe = popen(command.c_str(), "r");
+    std::string out;
+    std::array<char, 4096> buffer;
+    while (size_t n = fread(buffer.data(), 1, buffer.size(), pipe)) out.append(buffer.data(), n);
+    const int status = pclose(pipe);
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), out};
+}
+
+const char* kLamp = R"("lamp": {"type": "diffuse", "reflectance": 0.5, "emission": 1})";
+
+std::string sceneWith(const std::string& materials, const std::string& objects) {
+    return cat(R"({"materials": {)", kLamp, materials.empty() ? "" : ", ", materials, R"(}, "objects": [)",
+               R"({"name": "light", "type": "quad", "material": "lamp", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]})",
+               objects.empty() ? "" : ", ", objects, "]}");
+}
+
+// Solves `json` expecting failure: non-zero exit, one error line naming `file` and every fragment,
+// and no output directory.
+void expectRefused(const std::string& json, std::initializer_list<const char*> fragments, const std::string& extra = "") {
+    const std::string path = test::writeText("bad.json", json);
+    const std::string out = test::tempDir() + "/refused-out";
+    fs::remove_all(out);
+    const CommandResult r = run(cat("solve ", path, " --out ", out, " --patches 20 ", extra));
+    EXPECT_NE(r.status, 0) << r.output;
+    EXPECT_LT(r.status, 64) << "crashed or internal error: " << r.output;
+    size_t errors = 0;
+    for (size_t at = r.output.find("error:"); at != std::string::npos; at = r.output.find("error:", at + 1)) ++errors;
+    EXPECT_EQ(errors, 1u) << r.output;
+    for (const char* f : fragments) EXPECT_NE(r.output.find(f), std::string::npos) << "missing '" << f << "' in: " << r.output;
+    EXPECT_FALSE(fs::exists(out)) << "output written despite the error";
+}
+
+}  // namespace
+
+TEST(CliErrors, MalformedJsonGivesLineAndColumn) {
+    expectRefused("{\n  \"materials\": {,\n}", {"bad.json:2:", "malformed JSON"});
+}
+
+TEST(CliErrors, MaterialProblems) {
+    expectRefused(sceneWith("", R"({"name": "floor", "type": "quad", "material": "nope", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]})"),
+                  {"objects[1] 'floor'", "unknown material 'nope'"});
+    expectRefused(sceneWith("", R"({"name": "floor", "type": "quad", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]})"),
+                  {"objects[1] 'floor'", "'material'"});
+    expectRefused(sceneWith(R"("w": {"type": "diffuse", "reflectance": [0.5, 1.2, 0.5]})", ""),
+                  {"materials.w.reflectance", "[0, 1]"});
+    expectRefused(sceneWith(R"("w": {"type": "diffuse", "reflectance": 0.5, "emission": [1, -2, 1]})", ""),
+                  {"materials.w.emission", "negative"});
+    expectRefused(sceneWith(R"("w": {"type": "diffuse", "reflectance": 0.5, "emission": 1e999})", ""),
+                  {"bad.json", "1e999", "finite"});
+    expectRefused(sceneWith(R"("w": {"type": "diffuse", "reflectence": 0.5})", ""),
+                  {"materials.w", "unknown key 'reflectence'"});
+    expectRefused(sceneWith(R"("w": {"type": "plastic", "reflectance": 0.5})", ""), {"materials.w.type", "plastic"});
+}
+
+TEST(CliErrors, GeometryProblems) {
+    expectRefused(sceneWith("", R"({"name": "q", "type": "quad", "material": "lamp", "vertices": [[0,0,1],[1,0,1],[2,0,1],[3,0,1]]})"),
+                  {"'q'", "degenerate quad"});
+    expectRefused(sceneWith("", R"({"name": "q", "type": "quad", "material": "lamp", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1.03]]})"),
+                  {"'q'", "not planar"});
+    expectRefused(sceneWith("", R"({"name": "t", "type": "triangle", "material": "lamp", "vertices": [[0,0,1],[1,1,1],[2,2,1]]})"),
+                  {"'t'", "zero-area triangle"});
+    expectRefused(sceneWith("", R"({"name": "t", "type": "triangle", "material": "lamp", "vertices": [[0,0,1],[1,1e999,1],[2,2,1]]})"),
+                  {"bad.json", "1e999", "finite"});
+    expectRefused(sceneWith("", R"({"name": "t", "type": "triangle", "material": "lamp", "vertices": [[0,0,1],[1e12,1,1],[2,2,1]]})"),
+                  {"'t'", "unit_scale"});
+    expectRefused(sceneWith("", R"({"name": "s", "type": "sphere", "material": "lamp", "center": [0,0,0], "radius": -1})"),
+                  {"'s'", "radius"});
+    expectRefused(sceneWith("", R"({"name": "x", "type": "cone", "material": "lamp"})"), {"'x'", "unknown object type 'cone'"});
+    expectRefused(sceneWith("", R"({"name": "light", "type": "triangle", "material": "lamp", "vertices": [[0,0,1],[1,0,1],[0,1,1]]})"),
+                  {"duplicate object name 'light'"});
+    expectRefused(R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}}, "objects": []})", {"empty"});
+}
+
+TEST(CliErrors, MeshFileProblems) {
+    expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "missing.obj"})"),
+                  {"'m'", "missing.obj", "does not exist"});
+    test::writeText("garbage.ply", "this is not a ply file\n");
+    expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "garbage.ply"})"),
+                  {"'m'", "garbage.ply"});
+    test::writeText("points.xyz", "0 0 0\n");
+    expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "points.xyz"})"),
+                  {"'m'", "unsupported format"});
+}
+
+TEST(CliErrors, ClosedWhiteFurnaceHasNoSteadyState) {
+    expectRefused(test::closedCube(R"({"type": "diffuse", "reflectance": 1, "emission": 1})"), {"no steady state"});
+}
+
+TEST(CliErrors, OptionProblems) {
+    expectRefused(sceneWith("", ""), {"unknown solver 'magic'", "jacobi", "gauss-seidel", "southwell"}, "--solver magic");
+    expectRefused(sceneWith("", ""), {"--max-memory", "patches fit"}, "--max-memory 0.000001");
+    const CommandResult missing = run("solve /nonexistent/scene.json --out " + test::tempDir() + "/never");
+    EXPECT_NE(missing.status, 0);
+    EXPECT_NE(missing.output.find("/nonexistent/scene.json"), std::string::npos) << missing.output;
+}
+
+TEST(Cli, SceneWithoutEmitterWarnsAndSolvesToBlack) {
+    const std::string path = test::writeText("dark.json", R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
+      "objects": [{"name": "q", "type": "quad", "material": "m", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}]})");
+    const CommandResult r = run(cat("solve ", path, " --out ", test::tempDir(), "/dark --patches 4"));
+    EXPECT_EQ(r.status, 0) << r.output;
+    EXPECT_NE(r.output.find("warning"), std::string::npos);
+    EXPECT_NE(r.output.find("no material emits"), std::string::npos);
+}
+
+TEST(Cli, CornellBoxSolvesToAConformingReportAndRendersFromTheSolution) {
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
+    const std::string out = test::tempDir() + "/cornell";
+    fs::remove_all(out);
+    const CommandResult solve = run(cat("solve ", scene, " --out ", out, " --patches 300 --quiet"));
+    ASSERT_EQ(solve.status, 0) << solve.output;
+    for (const char* f : {"report.json", "convergence.csv", "solution.bin", "radiosity.exr", "radiosity.png"})
+        EXPECT_TRUE(fs::exists(out + "/" + f)) << f;
+    const std::string checker = std::string(PENUMBRA_SHARED_DIR) + "/tools/check-report";
+    ASSERT_TRUE(fs::exists(checker)) << "the contract's checker is missing at " << checker;
+    const int checked = std::system(cat("python3 ", checker, " ", out, "/report.json ", scene, " > /dev/null").c_str());
+    EXPECT_EQ(checked, 0);
+
+    const CommandResult render = run(cat("render ", scene, " --solution ", out, " --integrator radiosity --out ", out,
+                               "/view.exr --resolution 64x48 --quiet"));
+    EXPECT_EQ(render.status, 0) << render.output;
+    EXPECT_TRUE(fs::exists(out + "/view.exr"));
+    EXPECT_TRUE(fs::exists(out + "/view.png"));
+
+    // A solution belongs to its scene: another scene is refused, and nothing is written.
+    const std::string other = test::writeText("other.json", sceneWith("", "") );
+    const CommandResult mismatch = run(cat("render ", other, " --solution ", out, " --integrator radiosity --camera "
+                                 "'{\"position\": [0.5,0.5,3], \"look_at\": [0.5,0.5,0]}' --out ", out, "/other.exr"));
+    EXPECT_NE(mismatch.status, 0);
+    EXPECT_NE(mismatch.output.find("another version"), std::string::npos) << mismatch.output;
+    EXPECT_FALSE(fs::exists(out + "/other.exr"));
+}
+
+TEST(CliErrors, RenderWithoutCameraIsRefused) {
+    const std::string path = test::writeText("nocam.json", sceneWith("", ""));
+    const CommandResult r = run(cat("render ", path, " --integrator radiosity --out ", test::tempDir(), "/nocam.exr"));
+    EXPECT_NE(r.status, 0);
+    EXPECT_NE(r.output.find("camera"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(test::tempDir() + "/nocam.exr"));
+}

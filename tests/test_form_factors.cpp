@@ -1,0 +1,151 @@
+// Form factors against closed forms: differential area to a coaxial disk, parallel and
+// perpendicular unit squares (Howell's catalogue, C-11 and C-14), reciprocity from two independent
+// integrations, and closure of a box.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "fixtures.h"
+#include "solver/radiosity/form_factor_kernel.h"
+
+using namespace penumbra;
+
+namespace {
+
+// Howell C-11: parallel, directly opposed rectangles a x b at distance c.
+double parallelRectangles(double a, double b, double c) {
+    const double X = a / c, Y = b / c;
+    return 2 / (kPi * X * Y) *
+           (std::log(std::sqrt((1 + X * X) * (1 + Y * Y) / (1 + X * X + Y * Y))) +
+            X * std::sqrt(1 + Y * Y) * std::atan(X / std::sqrt(1 + Y * Y)) +
+            Y * std::sqrt(1 + X * X) * std::atan(Y / std::sqrt(1 + X * X)) - X * std::atan(X) - Y * std::atan(Y));
+}
+
+// Howell C-14: perpendicular rectangles sharing an edge of length l, widths w (from) and h (to).
+double perpendicularRectangles(double l, double w, double h) {
+    const double H = h / l, W = w / l;
+    const double A = (1 + W * W) * (1 + H * H) / (1 + W * W + H * H);
+    const double B = W * W * (1 + W * W + H * H) / ((1 + W * W) * (W * W + H * H));
+    const double C = H * H * (1 + H * H + W * W) / ((1 + H * H) * (H * H + W * W));
+    return 1 / (kPi * W) *
+           (W * std::atan(1 / W) + H * std::atan(1 / H) - std::sqrt(H * H + W * W) * std::atan(1 / std::sqrt(H * H + W * W)) +
+            0.25 * std::log(A * std::pow(B, W * W) * std::pow(C, H * H)));
+}
+
+const char* kTwoSquaresParallel = R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
+  "objects": [
+    {"name": "a", "type": "quad", "material": "m", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]},
+    {"name": "b", "type": "quad", "material": "m", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]}]})";
+
+const char* kTwoSquaresPerpendicular = R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
+  "objects": [
+    {"name": "a", "type": "quad", "material": "m", "vertices": [[0,0,0],[0,0,1],[1,0,1],[1,0,0]]},
+    {"name": "b", "type": "quad", "material": "m", "vertices": [[0,0,0],[0,1,0],[0,1,1],[0,0,1]]}]})";
+
+SolveResult solveWith(const std::string& json, int patches) {
+    SolveOptions o;
+    o.meshing.targetPatches = patches;
+    return solveScene(test::sceneFromJson(json), o);
+}
+
+}  // namespace
+
+TEST(FormFactorClosedForms, HowellValuesMatchTheIssue) {
+    // The catalogue formulas themselves, against the published values for unit squares.
+    EXPECT_NEAR(parallelRectangles(1, 1, 1), 0.19982, 1e-5);
+    EXPECT_NEAR(perpendicularRectangles(1, 1, 1), 0.20004, 1e-5);
+}
+
+TEST(FormFactorKernel, DifferentialAreaToCoaxialDisk) {
+    // F = R^2 / (R^2 + h^2); the disk is a 512-gon, whose area differs from the disk's by 2.5e-5.
+    for (double h : {0.1, 1.0, 10.0}) {
+        const double R = 1;
+        std::vector<Vec3> poly;
+        for (int k = 0; k < 512; ++k) poly.emplace_back(R * std::cos(2 * kPi * k / 512), R * std::sin(2 * kPi * k / 512), h);
+        // The kernel takes up to 4 vertices at a time: sum the fan of triangles.
+        double F = 0;
+        for (int k = 0; k < 512; ++k) {
+            const Vec3 tri[3] = {Vec3(0, 0, h), poly[size_t(k)], poly[size_t((k + 1) % 512)]};
+            F += pointPolygonFormFactor(Vec3::Zero(), Vec3::UnitZ(), tri, 3);
+        }
+        EXPECT_NEAR(F, R * R / (R * R + h * h), 5e-3 * R * R / (R * R + h * h)) << "h = " << h;
+    }
+}
+
+TEST(FormFactorKernel, ClipsWhatLiesBehindThePoint) {
+    // A square standing on the point's plane, half below it: only the upper half counts, which is
+    // the perpendicular-square configuration seen from a point on the shared edge's midline.
+    const Vec3 full[4] = {Vec3(-1, 1, -1), Vec3(1, 1, -1), Vec3(1, 1, 1), Vec3(-1, 1, 1)};
+    const Vec3 half[4] = {Vec3(-1, 1, 0), Vec3(1, 1, 0), Vec3(1, 1, 1), Vec3(-1, 1, 1)};
+    EXPECT_NEAR(pointPolygonFormFactor(Vec3::Zero(), Vec3::UnitZ(), full, 4),
+                pointPolygonFormFactor(Vec3::Zero(), Vec3::UnitZ(), half, 4), 1e-12);
+}
+
+TEST(FormFactorMatrix, SmallPatchToCoaxialDisk) {
+    // A 1 mm square patch under a disk (a 256-gon mesh of radius 1 at height 1), through the
+    // whole pipeline: F(patch -> disk) = R^2 / (R^2 + h^2) = 0.5.
+    std::string obj = "v 0 0 1\n";
+    for (int k = 0; k < 256; ++k) obj += cat("v ", std::cos(2 * kPi * k / 256), " ", std::sin(2 * kPi * k / 256), " 1\n");
+    for (int k = 0; k < 256; ++k) obj += cat("f 1 ", 2 + (k + 1) % 256, " ", 2 + k, "\n");
+    test::writeText("disk.obj", obj);
+    const std::string json = R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
+      "objects": [
+        {"name": "patch", "type": "quad", "material": "m", "vertices": [[-5e-4,-5e-4,0],[5e-4,-5e-4,0],[5e-4,5e-4,0],[-5e-4,5e-4,0]]},
+        {"name": "disk", "type": "mesh", "material": "m", "file": "disk.obj"}]})";
+    SolveOptions o;
+    o.meshing.patchSize = 0.2;
+    const SolveResult r = solveScene(test::sceneFromJson(json, "disk.json"), o);
+    const double polygonArea = 256 * 0.5 * std::sin(2 * kPi / 256);
+    const double Rp = std::sqrt(polygonArea / kPi);   // the disk of the polygon's area
+    EXPECT_NEAR(test::objectFormFactor(r, 0, 1), Rp * Rp / (Rp * Rp + 1), 0.005 * 0.5);
+}
+
+TEST(FormFactorMatrix, UnitSquaresAtDefaultSettings) {
+    for (int patches : {2, 50, 800}) {
+        const SolveResult parallel = solveWith(kTwoSquaresParallel, patches);
+        EXPECT_NEAR(test::objectFormFactor(parallel, 0, 1), 0.19982, 0.005 * 0.19982) << patches << " patches";
+        const SolveResult perpendicular = solveWith(kTwoSquaresPerpendicular, patches);
+        EXPECT_NEAR(test::objectFormFactor(perpendicular, 0, 1), 0.20004, 0.005 * 0.20004) << patches << " patches";
+    }
+}
+
+TEST(FormFactorMatrix, UnequalRectanglesBothWays) {
+    // Perpendicular 1 x 2 (wide) and 1 x 0.5 rectangles sharing the unit edge; reciprocity of the
+    // closed forms gives both directions.
+    const std::string json = R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
+      "objects": [
+        {"name": "a", "type": "quad", "material": "m", "vertices": [[0,0,0],[0,0,1],[2,0,1],[2,0,0]]},
+        {"name": "b", "type": "quad", "material": "m", "vertices": [[0,0,0],[0,0.5,0],[0,0.5,1],[0,0,1]]}]})";
+    const SolveResult r = solveWith(json, 300);
+    const double fab = perpendicularRectangles(1, 2, 0.5);
+    EXPECT_NEAR(test::objectFormFactor(r, 0, 1), fab, 0.005 * fab);
+    EXPECT_NEAR(test::objectFormFactor(r, 1, 0), fab * 2 / 0.5, 0.005 * fab * 4);
+}
+
+TEST(FormFactorMatrix, ReciprocityFromIndependentIntegrations) {
+    // A_i F(i->j) integrated over i, and A_j F(j->i) integrated over j, are two independent
+    // quadratures of the same double integral; they must agree within the estimator's tolerance.
+    SolveOptions o;
+    o.meshing.targetPatches = 150;
+    const Scene scene = test::sceneFromJson(test::closedCube(R"({"type": "diffuse", "reflectance": 0.5})"), "cube.json");
+    const PatchSet p = meshScene(scene, o.meshing);
+    const CubatureSettings settings;
+    double worst = 0;
+    for (size_t i = 0; i < p.size(); i += 7)
+        for (size_t j = 0; j < p.size(); j += 5) {
+            if (i == j || std::abs(p.normal[i].dot(p.normal[j])) > 0.5) continue;   // skip coplanar / opposite faces
+            const double gij = unoccludedAreaFactor(p, i, j, settings), gji = unoccludedAreaFactor(p, j, i, settings);
+            worst = std::max(worst, std::abs(gij - gji) / std::max(gij, gji));
+        }
+    EXPECT_LT(worst, 1e-3);
+}
+
+TEST(FormFactorMatrix, ClosedBoxRowsSumToOne) {
+    SolveOptions o;
+    o.meshing.targetPatches = 600;
+    const SolveResult r = solveScene(test::sceneFromJson(test::closedCube(R"({"type": "diffuse", "reflectance": 0.5, "emission": 1})"), "cube.json"), o);
+    EXPECT_NEAR(r.rowSumMin, 1.0, 1e-5);
+    EXPECT_NEAR(r.rowSumMax, 1.0, 1e-5);
+    // In a closed box nothing escapes.
+    EXPECT_NEAR(r.power.escaped.sum(), 0.0, 1e-5 * r.power.totalEmitted.sum());
+}

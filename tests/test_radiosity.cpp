@@ -1,0 +1,138 @@
+// The radiosity solve against physics: the white furnace B = E / (1 - rho) (up to rho = 0.999),
+// closed-form energy exchange between two squares, power balance, energy at every step, and the
+// convergence behaviour of the three solvers.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "fixtures.h"
+
+using namespace penumbra;
+
+namespace {
+
+SolveResult solve(const std::string& json, int patches, const std::string& solver = "gauss-seidel",
+                  double tolerance = 1e-6, const StepObserver& observer = {}) {
+    SolveOptions o;
+    o.meshing.targetPatches = patches;
+    o.solver = solver;
+    o.solverSettings.tolerance = tolerance;
+    o.solverSettings.maxIterations = 200000;
+    return solveScene(test::sceneFromJson(json), o, observer);
+}
+
+std::string cornellBox() {
+    std::ifstream in(std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json");
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+}  // namespace
+
+class Furnace : public ::testing::TestWithParam<std::tuple<double, std::string>> {};
+
+TEST_P(Furnace, EveryPatchReachesEOverOneMinusRho) {
+    const auto [rho, solver] = GetParam();
+    const double Le = 1.0;   // radiance: exitance E = pi
+    const std::string material = cat(R"({"type": "diffuse", "reflectance": )", rho, R"(, "emission": )", Le, "}");
+    const SolveResult r = solve(test::closedCube(material), 150, solver, 1e-7);
+    const double expected = kPi * Le / (1 - rho);
+    ASSERT_TRUE(r.solution.converged);
+    for (size_t i = 0; i < r.patches.size(); ++i)
+        for (int c = 0; c < 3; ++c)
+            ASSERT_NEAR(r.solution.B[i][c], expected, 0.005 * expected) << "patch " << i << ", rho " << rho;
+}
+
+INSTANTIATE_TEST_SUITE_P(Extremes, Furnace,
+                         ::testing::Combine(::testing::Values(0.5, 0.9, 0.99, 0.999),
+                                            ::testing::Values("jacobi", "gauss-seidel", "southwell")));
+
+TEST(Energy, TwoSquaresExchangeTheClosedFormPower) {
+    // A black emitter and a black receiver, unit squares 1 apart: the receiver absorbs
+    // pi L_e A F = pi * 2 * 0.19982 W; the rest escapes.
+    const std::string json = R"({"materials": {"lamp": {"type": "diffuse", "reflectance": 0, "emission": 2},
+                                              "black": {"type": "diffuse", "reflectance": 0}},
+      "objects": [
+        {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]},
+        {"name": "receiver", "type": "quad", "material": "black", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]}]})";
+    const SolveResult r = solve(json, 200);
+    Rgb receiver = Rgb::Zero();
+    for (size_t i = 0; i < r.patches.size(); ++i)
+        if (r.patches.object[i] == 1) receiver += r.power.absorbed[i];
+    const double expected = kPi * 2 * 0.19982;
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(receiver[c], expected, 0.005 * expected);
+        EXPECT_NEAR(r.power.escaped[c], kPi * 2 - expected, 0.005 * expected);
+    }
+}
+
+TEST(Energy, OpenScenePowerBalances) {
+    const std::string json = R"({"materials": {"lamp": {"type": "diffuse", "reflectance": 0.3, "emission": [3, 2, 1]},
+                                              "grey": {"type": "diffuse", "reflectance": [0.9, 0.5, 0.1]}},
+      "objects": [
+        {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]},
+        {"name": "wall", "type": "quad", "material": "grey", "vertices": [[0,0,0],[0,0,1],[0,1,1],[0,1,0]]},
+        {"name": "card", "type": "triangle", "material": "grey", "vertices": [[0,0,1],[0,1,1],[1,1,1]]}]})";
+    const SolveResult r = solve(json, 300);
+    for (int c = 0; c < 3; ++c) {
+        const double e = r.power.totalEmitted[c];
+        EXPECT_NEAR(e, kPi * (c == 0 ? 3 : c == 1 ? 2 : 1), 1e-9 * e);
+        EXPECT_NEAR(r.power.totalAbsorbed[c] + r.power.escaped[c], e, 1e-4 * e);
+        EXPECT_GT(r.power.escaped[c], 0.3 * e);   // an open scene loses most of its light
+    }
+}
+
+TEST(Energy, CornellBoxPowerBalances) {
+    const SolveResult r = solve(cornellBox(), 400);
+    for (int c = 0; c < 3; ++c) {
+        const double e = r.power.totalEmitted[c];
+        // The lamp's area is 0.13 x 0.105 m^2 and its exitance pi L_e.
+        const double lamp = kPi * Rgb(17, 12, 4)[c] * 0.130 * 0.105;
+        EXPECT_NEAR(e, lamp, 1e-9 * lamp);
+        EXPECT_NEAR(r.power.totalAbsorbed[c] + r.power.escaped[c], e, 1e-4 * e);
+        EXPECT_GT(r.power.escaped[c], 0);
+    }
+}
+
+class EnergyEveryStep : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(EnergyEveryStep, NoSolverEverGainsPower) {
+    // From below, without over-relaxation, B only grows towards the solution: at no step may the
+    // absorbed power exceed the emitted power, nor any radiosity fall.
+    std::vector<std::vector<Rgb>> steps;
+    const SolveResult r = solve(cornellBox(), 300, GetParam(), 1e-6,
+                                [&](int, const std::vector<Rgb>& B) { steps.push_back(B); });
+    ASSERT_GT(steps.size(), 3u);
+    std::vector<Rgb> previous(r.patches.size(), Rgb::Zero());
+    for (const auto& B : steps) {
+        const PowerBalance p = powerBalance(r.system, r.F, B);
+        for (int c = 0; c < 3; ++c) ASSERT_LE(p.totalAbsorbed[c], p.totalEmitted[c] * (1 + 1e-9));
+        for (size_t i = 0; i < B.size(); ++i)
+            for (int c = 0; c < 3; ++c) ASSERT_GE(B[i][c], previous[i][c] * (1 - 1e-12)) << "patch " << i;
+        previous = B;
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(Solvers, EnergyEveryStep, ::testing::Values("jacobi", "gauss-seidel", "southwell"));
+
+TEST(Convergence, AllSolversReachTheSameSolution) {
+    const SolveResult gs = solve(cornellBox(), 300, "gauss-seidel", 1e-8);
+    for (const char* name : {"jacobi", "southwell"}) {
+        const SolveResult other = solve(cornellBox(), 300, name, 1e-8);
+        ASSERT_EQ(other.patches.size(), gs.patches.size());
+        for (size_t i = 0; i < gs.patches.size(); ++i)
+            for (int c = 0; c < 3; ++c)
+                ASSERT_NEAR(other.solution.B[i][c], gs.solution.B[i][c], 1e-5 * std::max(gs.solution.B[i][c], 1e-3))
+                    << name << ", patch " << i;
+    }
+}
+
+TEST(Convergence, ResidualFallsMonotonicallyAndGaussSeidelIsFaster) {
+    const SolveResult jacobi = solve(cornellBox(), 300, "jacobi", 1e-8);
+    const SolveResult gs = solve(cornellBox(), 300, "gauss-seidel", 1e-8);
+    for (const SolveResult* r : {&jacobi, &gs}) {
+        ASSERT_TRUE(r->solution.converged);
+        for (size_t k = 1; k < r->solution.history.size(); ++k)
+            EXPECT_LT(r->solution.history[k].residual, r->solution.history[k - 1].residual) << r->solverName << " step " << k;
+    }
+    EXPECT_LT(gs.solution.iterations, jacobi.solution.iterations);
+}
