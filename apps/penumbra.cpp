@@ -4,7 +4,6 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <regex>
 
 #include "core/error.h"
 #include "core/log.h"
@@ -99,11 +98,11 @@ Camera cameraFor(const Scene& scene, const RenderCli& c) {
         throw Error(cat(scene.path, ": camera: the scene has no camera; add one or pass --camera '{\"position\": ..., \"look_at\": ...}'"));
     }
     if (!c.resolution.empty()) {
-        std::smatch m;
-        if (!std::regex_match(c.resolution, m, std::regex(R"((\d{1,5})x(\d{1,5}))")))
+        int w = 0, h = 0, used = 0;
+        if (std::sscanf(c.resolution.c_str(), "%dx%d%n", &w, &h, &used) != 2 || size_t(used) != c.resolution.size())
             throw Error(cat("--resolution: expected WIDTHxHEIGHT such as 512x512, got '", c.resolution, "'"));
-        camera.width = std::stoi(m[1]);
-        camera.height = std::stoi(m[2]);
+        camera.width = w;
+        camera.height = h;
         if (camera.width < 1 || camera.height < 1 || camera.width > 16384 || camera.height > 16384)
             throw Error("--resolution: width and height must lie in [1, 16384]");
     }

@@ -1,5 +1,5 @@
 // Scene objects -> OpenMesh meshes -> patches. Quads become grids of quads; triangles a regular
-// grid of sub-triangles; spheres a projected cube (near-uniform quads); mesh files are triangulated
+// grid of sub-triangles; spheres a projected cube (near-uniform triangle pairs); mesh files are triangulated
 // and refined with OpenMesh's longest-edge splitting until no edge exceeds the target size.
 #include <cmath>
 #include <map>
@@ -83,12 +83,30 @@ PolyMesh gridTriangle(const std::vector<Vec3>& t, double h) {
     return mesh;
 }
 
+// Area of the triangulated k x k cube-sphere inscribed in the unit sphere.
+double unitCubeSphereArea(int k) {
+    double area = 0;
+    auto p = [&](int ii, int jj) { return Vec3(1, 2.0 * ii / k - 1, 2.0 * jj / k - 1).normalized(); };
+    for (int j = 0; j < k; ++j)
+        for (int i = 0; i < k; ++i) {   // one face; the six are congruent
+            const Vec3 a = p(i, j), b = p(i + 1, j), c = p(i + 1, j + 1), d = p(i, j + 1);
+            const bool diagonalAC = (a - c).squaredNorm() <= (b - d).squaredNorm();
+            area += diagonalAC ? 0.5 * ((b - a).cross(c - a).norm() + (c - a).cross(d - a).norm())
+                               : 0.5 * ((b - a).cross(d - a).norm() + (c - b).cross(d - b).norm());
+        }
+    return 6 * area;
+}
+
 // A cube's six faces, each a k x k grid, projected onto the unit sphere, then mapped to the world.
+// Cells are split into triangles, so every patch is planar.
 PolyMesh cubeSphere(const SceneObject& o, double h) {
     const Vec3 c = o.toWorld * o.center;
     const double worldRadius = (o.toWorld.linear() * Vec3(o.radius, 0, 0)).norm();
     const double area = 4 * kPi * worldRadius * worldRadius;
-    const int k = std::max(2, int(std::ceil(std::sqrt(area / (6 * h * h)))));
+    const int k = std::max(2, int(std::ceil(std::sqrt(area / (12 * h * h)))));
+    // Facets inscribed in the sphere hold less area than it; lifting the vertices by this factor
+    // gives the tessellation the sphere's area, so emitted and absorbed powers come out right.
+    const double lift = std::sqrt(4 * kPi / unitCubeSphereArea(k));
     PolyMesh mesh;
     std::map<std::array<long, 3>, PolyMesh::VertexHandle> shared;   // cube-edge vertices shared by faces
     auto vertex = [&](const Vec3& cubePoint) {
@@ -96,7 +114,7 @@ PolyMesh cubeSphere(const SceneObject& o, double h) {
                                       std::lround(cubePoint.z() * 2 * k)};
         auto it = shared.find(key);
         if (it != shared.end()) return it->second;
-        const Vec3 p = o.toWorld * (o.center + o.radius * cubePoint.normalized());
+        const Vec3 p = o.toWorld * (o.center + lift * o.radius * cubePoint.normalized());
         return shared[key] = mesh.add_vertex(om(p));
     };
     for (int axis = 0; axis < 3; ++axis)
@@ -110,7 +128,18 @@ PolyMesh cubeSphere(const SceneObject& o, double h) {
             for (int j = 0; j < k; ++j)
                 for (int i = 0; i < k; ++i) {
                     auto p = [&](int ii, int jj) { return n + (2.0 * ii / k - 1) * a + (2.0 * jj / k - 1) * b; };
-                    mesh.add_face(vertex(p(i, j)), vertex(p(i + 1, j)), vertex(p(i + 1, j + 1)), vertex(p(i, j + 1)));
+                    // Two planar triangles per cell (split along the shorter diagonal): a projected
+                    // quad is not planar, and a patch that bends lets facets of a convex sphere
+                    // see each other.
+                    const auto v00 = vertex(p(i, j)), v10 = vertex(p(i + 1, j)), v11 = vertex(p(i + 1, j + 1)),
+                               v01 = vertex(p(i, j + 1));
+                    if ((mesh.point(v00) - mesh.point(v11)).sqrnorm() <= (mesh.point(v10) - mesh.point(v01)).sqrnorm()) {
+                        mesh.add_face(v00, v10, v11);
+                        mesh.add_face(v00, v11, v01);
+                    } else {
+                        mesh.add_face(v00, v10, v01);
+                        mesh.add_face(v10, v11, v01);
+                    }
                 }
         }
     (void)c;

@@ -58,7 +58,7 @@ const double kWeights[3][3] = {{1, 0, 0}, {0.5, 0.5, 0}, {5.0 / 18, 8.0 / 18, 5.
 
 struct Cubature {
     const PatchSet& patches;
-    size_t s;
+    size_t s, r;
     const Vec3* poly;
     int count;
     double sourceRadius;
@@ -66,7 +66,9 @@ struct Cubature {
     int maxDepth;
     uint64_t evaluations = 0;
 
-    double cell(double u0, double v0, double size, int depth) {
+    double height(const Vec3& x) const { return patches.normal[r].dot(x - patches.centroid[r]); }
+
+    void cell(double u0, double v0, double size, int depth, AreaFactors& out) {
         const Vec3 centre = patches.pointAt(s, u0 + size / 2, v0 + size / 2);
         const double diameter = 2 * sourceRadius * size;
         const double distance = pointPolygonDistance(centre, poly, count);
@@ -76,34 +78,45 @@ struct Cubature {
             for (int g = 1; g <= 3 && order == 0; ++g)
                 if (std::pow(half, 2 * g) <= tolerance) order = g;
         }
+        // A cell that r's plane cuts holds points that see both of r's faces: split it, so the cut
+        // is resolved to the smallest cells.
+        if (order > 0 && std::abs(height(centre)) < diameter) {
+            const double h0 = height(patches.pointAt(s, u0, v0)), h1 = height(patches.pointAt(s, u0 + size, v0)),
+                         h2 = height(patches.pointAt(s, u0 + size, v0 + size)), h3 = height(patches.pointAt(s, u0, v0 + size));
+            if (std::min({h0, h1, h2, h3}) < 0 && std::max({h0, h1, h2, h3}) > 0) order = 0;
+        }
         if (order == 0 && depth < maxDepth) {
             const double h = size / 2;
-            return cell(u0, v0, h, depth + 1) + cell(u0 + h, v0, h, depth + 1) + cell(u0, v0 + h, h, depth + 1) +
-                   cell(u0 + h, v0 + h, h, depth + 1);
+            cell(u0, v0, h, depth + 1, out);
+            cell(u0 + h, v0, h, depth + 1, out);
+            cell(u0, v0 + h, h, depth + 1, out);
+            cell(u0 + h, v0 + h, h, depth + 1, out);
+            return;
         }
         if (order == 0) order = 3;
         const Vec3& n = patches.normal[s];
-        double sum = 0;
         for (int a = 0; a < order; ++a)
             for (int b = 0; b < order; ++b) {
                 const double u = u0 + size * kNodes[order - 1][a], v = v0 + size * kNodes[order - 1][b];
                 const double w = kWeights[order - 1][a] * kWeights[order - 1][b] * size * size;
-                sum += w * patches.jacobian(s, u, v) * pointPolygonFormFactor(patches.pointAt(s, u, v), n, poly, count);
+                const Vec3 x = patches.pointAt(s, u, v);
+                const double f = w * patches.jacobian(s, u, v) * pointPolygonFormFactor(x, n, poly, count);
+                (height(x) >= 0 ? out.front : out.back) += f;
             }
         evaluations += uint64_t(order * order);
-        return sum;
     }
 };
 
 }  // namespace
 
-double unoccludedAreaFactor(const PatchSet& patches, size_t s, size_t r, const CubatureSettings& settings,
-                            uint64_t* evaluations) {
-    Cubature c{patches, s, patches.corners[r].data(), patches.cornerCount[r], patches.boundingRadius(s),
+AreaFactors unoccludedAreaFactors(const PatchSet& patches, size_t s, size_t r, const CubatureSettings& settings,
+                                  uint64_t* evaluations) {
+    Cubature c{patches, s, r, patches.corners[r].data(), patches.cornerCount[r], patches.boundingRadius(s),
                settings.tolerance, settings.maxDepth};
-    const double value = c.cell(0, 0, 1, 0);
+    AreaFactors out;
+    c.cell(0, 0, 1, 0, out);
     if (evaluations) *evaluations += c.evaluations;
-    return value;
+    return out;
 }
 
 }  // namespace penumbra

@@ -26,10 +26,22 @@ struct CubatureSettings {
     int maxDepth = 9;   // cells along a shared edge end at 2^-maxDepth of the patch
 };
 
-// A_s * F(s -> r): the unoccluded factor from patch s to patch r times s's area (m^2). Symmetric in
-// exact arithmetic (reciprocity); integrate over the smaller patch for accuracy.
-// `evaluations` counts kernel calls.
-double unoccludedAreaFactor(const PatchSet& patches, size_t s, size_t r, const CubatureSettings& settings,
-                            uint64_t* evaluations = nullptr);
+// Unoccluded area factors from patch s's front face to patch r, split by the face of r the light
+// arrives at: `front` integrates over the points of s in front of r's plane, `back` over those
+// behind it (which see r's back). A_s F(s -> r) = front + back, m^2. `front` is symmetric in exact
+// arithmetic (reciprocity), so integrate over the smaller patch for accuracy; `back` needs s to be
+// the sending patch. `evaluations` counts kernel calls.
+struct AreaFactors {
+    double front = 0, back = 0;
+};
+AreaFactors unoccludedAreaFactors(const PatchSet& patches, size_t s, size_t r, const CubatureSettings& settings,
+                                  uint64_t* evaluations = nullptr);
+
+// front + back, for callers that do not care which face receives.
+inline double unoccludedAreaFactor(const PatchSet& patches, size_t s, size_t r, const CubatureSettings& settings,
+                                   uint64_t* evaluations = nullptr) {
+    const AreaFactors f = unoccludedAreaFactors(patches, s, r, settings, evaluations);
+    return f.front + f.back;
+}
 
 }  // namespace penumbra

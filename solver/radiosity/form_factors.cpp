@@ -20,6 +20,18 @@ bool inFront(const PatchSet& p, size_t a, size_t b) {
     return false;
 }
 
+// Whether patch b has corners strictly on both sides of patch a's plane.
+bool straddles(const PatchSet& p, size_t a, size_t b) {
+    const double eps = 1e-9 * (p.boundingRadius(a) + p.boundingRadius(b));
+    bool above = false, below = false;
+    for (int k = 0; k < p.cornerCount[b]; ++k) {
+        const double h = p.normal[a].dot(p.corners[b][size_t(k)] - p.centroid[a]);
+        above = above || h > eps;
+        below = below || h < -eps;
+    }
+    return above && below;
+}
+
 // A point of patch i in stratum k of a side x side grid, jittered. Points keep a margin of 1e-3 of
 // the patch from its edges: a segment from a point exactly on an edge can graze along a seam (the
 // top edge of a wall, a wall-ceiling joint) in float precision and slip past a thin occluder.
@@ -48,25 +60,32 @@ double liftDistance(const PatchSet& p, size_t i) {
 // Fraction of segments between the two patches that nothing blocks: `base` stratified rays, then
 // four times as many when the first ones disagree (a shadow boundary crosses the pair). The
 // endpoints are lifted off the faces that exchange light: sideA, sideB = +1 front, -1 back.
+// Segments that leave a's face backwards or reach b's face from behind (where one patch straddles
+// the other's plane) carry no light in the analytic factor, which clips them away: they are left
+// out of the count rather than counted as blocked.
 Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, size_t b, int sideA, int sideB,
                            int base, uint64_t seed) {
     Rng rng(mixSeed(seed, a, b));
-    const Vec3 liftA = sideA * liftDistance(p, a) * p.normal[a], liftB = sideB * liftDistance(p, b) * p.normal[b];
+    const Vec3 na = sideA * p.normal[a], nb = sideB * p.normal[b];
+    const Vec3 liftA = liftDistance(p, a) * na, liftB = liftDistance(p, b) * nb;
+    int valid = 0, visible = 0, rays = 0;
     auto cast = [&](int count) {
         int side = 1;
         while (side * side < count) ++side;
-        int visible = 0;
         for (int k = 0; k < count; ++k) {
             const int sa = k % (side * side), sb = (k * 7 + 3) % (side * side);   // decorrelated strata
-            const Vec3 from = stratifiedPoint(p, a, sa, side, rng) + liftA, to = stratifiedPoint(p, b, sb, side, rng) + liftB;
-            visible += !scene.occluded(from, to);
+            const Vec3 from = stratifiedPoint(p, a, sa, side, rng), to = stratifiedPoint(p, b, sb, side, rng);
+            if (na.dot(to - from) <= 0 || nb.dot(from - to) <= 0) continue;
+            ++valid;
+            ++rays;
+            visible += !scene.occluded(from + liftA, to + liftB);
         }
-        return visible;
     };
-    const int first = cast(base);
-    if (first == 0 || first == base) return {double(first) / base, base};
-    const int more = cast(3 * base);
-    return {double(first + more) / (4 * base), 4 * base};
+    cast(base);
+    if (valid == 0 || (visible > 0 && visible < valid)) cast(3 * base);
+    // No segment found between the faces: too little of the pair faces the other to matter, and
+    // calling it blocked can never leak light.
+    return {valid > 0 ? double(visible) / valid : 0.0, rays};
 }
 
 }  // namespace
@@ -99,17 +118,27 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
                     continue;
                 }
                 if (vis.fraction < 1) ++myPartial;
-                // Integrate over the smaller patch, analytically over the larger.
-                const bool iSmaller = patches.area[i] <= patches.area[j];
-                const double g = vis.fraction * unoccludedAreaFactor(patches, iSmaller ? i : j, iSmaller ? j : i,
-                                                                     settings.cubature, &myEvaluations);
+                const CubatureSettings& cub = settings.cubature;
                 if (jFrontOfI && iFrontOfJ) {
-                    F(i, j) = float(g / patches.area[i]);
-                    F(j, i) = float(g / patches.area[j]);
+                    // Front to front: integrate over the smaller patch, analytically over the larger.
+                    const bool iSmaller = patches.area[i] <= patches.area[j];
+                    const AreaFactors g = unoccludedAreaFactors(patches, iSmaller ? i : j, iSmaller ? j : i, cub, &myEvaluations);
+                    F(i, j) = float(vis.fraction * g.front / patches.area[i]);
+                    F(j, i) = float(vis.fraction * g.front / patches.area[j]);
+                    // Where one patch straddles the other's plane, part of it sees the other's back.
+                    const double backIJ = straddles(patches, j, i)
+                                              ? (iSmaller ? g.back : unoccludedAreaFactors(patches, i, j, cub, &myEvaluations).back)
+                                              : 0.0;
+                    const double backJI = straddles(patches, i, j)
+                                              ? (iSmaller ? unoccludedAreaFactors(patches, j, i, cub, &myEvaluations).back : g.back)
+                                              : 0.0;
+                    if (backIJ > 0) myBack.push_back({int(i), int(j), vis.fraction * backIJ});
+                    if (backJI > 0) myBack.push_back({int(j), int(i), vis.fraction * backJI});
                 } else if (jFrontOfI) {
-                    myBack.push_back({int(i), int(j), g});
+                    // All of i lies behind j's plane: i's front reaches j's back.
+                    myBack.push_back({int(i), int(j), vis.fraction * unoccludedAreaFactor(patches, i, j, cub, &myEvaluations)});
                 } else {
-                    myBack.push_back({int(j), int(i), g});
+                    myBack.push_back({int(j), int(i), vis.fraction * unoccludedAreaFactor(patches, j, i, cub, &myEvaluations)});
                 }
             }
             progress.update(int64_t(n - i - 1));
