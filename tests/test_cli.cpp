@@ -132,7 +132,7 @@ TEST(Cli, CornellBoxSolvesToAConformingReportAndRendersFromTheSolution) {
     const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
     const std::string out = test::tempDir() + "/cornell";
     fs::remove_all(out);
-    const CommandResult solve = run(cat("solve ", scene, " --out ", out, " --patches 300 --quiet"));
+    const CommandResult solve = run(cat("solve ", scene, " --out ", out, " --patches 150 --quiet"));
     ASSERT_EQ(solve.status, 0) << solve.output;
     for (const char* f : {"report.json", "convergence.csv", "solution.bin", "radiosity.exr", "radiosity.png"})
         EXPECT_TRUE(fs::exists(out + "/" + f)) << f;

@@ -80,7 +80,7 @@ TEST_P(MeshFormats, ClosedCubeMeshIsAWhiteFurnace) {
     const Scene scene = test::sceneFromJson(cat(R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.9, "emission": 1}},
       "objects": [{"name": "cube", "type": "mesh", "material": "m", "file": "cube.)", ext, R"("}]})"), "mesh-" + ext + ".json");
     SolveOptions o;
-    o.meshing.targetPatches = 300;
+    o.meshing.targetPatches = 100;
     const SolveResult r = solveScene(scene, o);
     double area = 0;
     for (double a : r.patches.area) area += a;
@@ -116,7 +116,7 @@ TEST(Meshing, SphereFacesOutwardAndKeepsItsArea) {
         {"name": "back",   "type": "quad", "material": "black", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]},
         {"name": "front",  "type": "quad", "material": "black", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}]})";
     SolveOptions o;
-    o.meshing.targetPatches = 1200;
+    o.meshing.targetPatches = 500;
     const SolveResult r = solveScene(test::sceneFromJson(json), o);
     const std::vector<double> rows = rowSums(r.F);
     double sphereArea = 0;
