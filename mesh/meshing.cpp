@@ -83,6 +83,12 @@ PolyMesh gridTriangle(const std::vector<Vec3>& t, double h) {
     return mesh;
 }
 
+// For a cell a, b, c, d of points on a sphere about the origin: whether the diagonal a-c lies
+// farther out than b-d, so that splitting along it keeps the surface convex.
+bool ridgeAlongFirstDiagonal(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+    return (a.normalized() + c.normalized()).squaredNorm() >= (b.normalized() + d.normalized()).squaredNorm();
+}
+
 // Area of the triangulated k x k cube-sphere inscribed in the unit sphere.
 double unitCubeSphereArea(int k) {
     double area = 0;
@@ -90,7 +96,7 @@ double unitCubeSphereArea(int k) {
     for (int j = 0; j < k; ++j)
         for (int i = 0; i < k; ++i) {   // one face; the six are congruent
             const Vec3 a = p(i, j), b = p(i + 1, j), c = p(i + 1, j + 1), d = p(i, j + 1);
-            const bool diagonalAC = (a - c).squaredNorm() <= (b - d).squaredNorm();
+            const bool diagonalAC = ridgeAlongFirstDiagonal(a, b, c, d);
             area += diagonalAC ? 0.5 * ((b - a).cross(c - a).norm() + (c - a).cross(d - a).norm())
                                : 0.5 * ((b - a).cross(d - a).norm() + (c - b).cross(d - b).norm());
         }
@@ -128,12 +134,12 @@ PolyMesh cubeSphere(const SceneObject& o, double h) {
             for (int j = 0; j < k; ++j)
                 for (int i = 0; i < k; ++i) {
                     auto p = [&](int ii, int jj) { return n + (2.0 * ii / k - 1) * a + (2.0 * jj / k - 1) * b; };
-                    // Two planar triangles per cell (split along the shorter diagonal): a projected
-                    // quad is not planar, and a patch that bends lets facets of a convex sphere
-                    // see each other.
+                    // Two planar triangles per cell: a projected quad is not planar. The split
+                    // follows the diagonal that lies farther out (a ridge, not a valley), so the
+                    // tessellation stays convex and no two facets of a sphere see each other.
                     const auto v00 = vertex(p(i, j)), v10 = vertex(p(i + 1, j)), v11 = vertex(p(i + 1, j + 1)),
                                v01 = vertex(p(i, j + 1));
-                    if ((mesh.point(v00) - mesh.point(v11)).sqrnorm() <= (mesh.point(v10) - mesh.point(v01)).sqrnorm()) {
+                    if (ridgeAlongFirstDiagonal(p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1))) {
                         mesh.add_face(v00, v10, v11);
                         mesh.add_face(v00, v11, v01);
                     } else {

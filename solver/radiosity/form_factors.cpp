@@ -57,35 +57,76 @@ double liftDistance(const PatchSet& p, size_t i) {
     return 1e-4 * p.boundingRadius(i) + 1e-6 * p.centroid[i].cwiseAbs().maxCoeff();
 }
 
+// The part of patch b on the `side` of patch a's plane, as a convex polygon (up to 8 corners)
+// pulled 1e-3 of the way towards its centroid, like the inset of `stratifiedPoint`.
+struct ClippedPolygon {
+    Vec3 v[8];
+    int count = 0;
+    double area = 0;
+};
+ClippedPolygon clipToSide(const PatchSet& p, size_t b, size_t a, const Vec3& sideNormal) {
+    ClippedPolygon out;
+    const int n = p.cornerCount[b];
+    for (int k = 0; k < n; ++k) {
+        const Vec3& u = p.corners[b][size_t(k)];
+        const Vec3& w = p.corners[b][size_t((k + 1) % n)];
+        const double du = sideNormal.dot(u - p.centroid[a]), dw = sideNormal.dot(w - p.centroid[a]);
+        if (du > 0) out.v[out.count++] = u;
+        if ((du > 0) != (dw > 0)) out.v[out.count++] = u + (du / (du - dw)) * (w - u);
+    }
+    if (out.count < 3) return out;
+    Vec3 centre = Vec3::Zero();
+    for (int k = 0; k < out.count; ++k) centre += out.v[k];
+    centre /= out.count;
+    for (int k = 0; k < out.count; ++k) out.v[k] = centre + (1 - 2e-3) * (out.v[k] - centre);
+    for (int k = 1; k + 1 < out.count; ++k) out.area += 0.5 * (out.v[k] - out.v[0]).cross(out.v[k + 1] - out.v[0]).norm();
+    return out;
+}
+
+// A uniform point of a convex polygon: a fan triangle chosen by area, then a uniform point in it.
+Vec3 uniformPoint(const ClippedPolygon& c, Rng& rng) {
+    double pick = rng.uniform() * c.area;
+    int k = 1;
+    for (; k + 2 < c.count; ++k) {
+        const double a = 0.5 * (c.v[k] - c.v[0]).cross(c.v[k + 1] - c.v[0]).norm();
+        if (pick < a) break;
+        pick -= a;
+    }
+    double s = rng.uniform(), t = rng.uniform();
+    if (s + t > 1) s = 1 - s, t = 1 - t;
+    return c.v[0] + s * (c.v[k] - c.v[0]) + t * (c.v[k + 1] - c.v[0]);
+}
+
 // Fraction of segments between the two patches that nothing blocks: `base` stratified rays, then
 // four times as many when the first ones disagree (a shadow boundary crosses the pair). The
 // endpoints are lifted off the faces that exchange light: sideA, sideB = +1 front, -1 back.
-// Segments that leave a's face backwards or reach b's face from behind (where one patch straddles
-// the other's plane) carry no light in the analytic factor, which clips them away: they are left
-// out of the count rather than counted as blocked.
+// Where a patch straddles the other's plane, only its part on the facing side exchanges light
+// (the analytic factor clips the rest), so the segments are drawn from that part alone.
 Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, size_t b, int sideA, int sideB,
                            int base, uint64_t seed) {
     Rng rng(mixSeed(seed, a, b));
     const Vec3 na = sideA * p.normal[a], nb = sideB * p.normal[b];
     const Vec3 liftA = liftDistance(p, a) * na, liftB = liftDistance(p, b) * nb;
-    int valid = 0, visible = 0, rays = 0;
+    const bool clipped = straddles(p, a, b) || straddles(p, b, a);
+    // The part of a in front of b's receiving face, and of b in front of a's sending face.
+    const ClippedPolygon partA = clipped ? clipToSide(p, a, b, nb) : ClippedPolygon{};
+    const ClippedPolygon partB = clipped ? clipToSide(p, b, a, na) : ClippedPolygon{};
+    if (clipped && (partA.count < 3 || partB.count < 3 || !(partA.area > 0) || !(partB.area > 0))) return {0.0, 0};
+    int visible = 0, rays = 0;
     auto cast = [&](int count) {
         int side = 1;
         while (side * side < count) ++side;
         for (int k = 0; k < count; ++k) {
             const int sa = k % (side * side), sb = (k * 7 + 3) % (side * side);   // decorrelated strata
-            const Vec3 from = stratifiedPoint(p, a, sa, side, rng), to = stratifiedPoint(p, b, sb, side, rng);
-            if (na.dot(to - from) <= 0 || nb.dot(from - to) <= 0) continue;
-            ++valid;
+            const Vec3 from = clipped ? uniformPoint(partA, rng) : stratifiedPoint(p, a, sa, side, rng);
+            const Vec3 to = clipped ? uniformPoint(partB, rng) : stratifiedPoint(p, b, sb, side, rng);
             ++rays;
             visible += !scene.occluded(from + liftA, to + liftB);
         }
     };
     cast(base);
-    if (valid == 0 || (visible > 0 && visible < valid)) cast(3 * base);
-    // No segment found between the faces: too little of the pair faces the other to matter, and
-    // calling it blocked can never leak light.
-    return {valid > 0 ? double(visible) / valid : 0.0, rays};
+    if (visible > 0 && visible < rays) cast(3 * base);
+    return {double(visible) / rays, rays};
 }
 
 }  // namespace
