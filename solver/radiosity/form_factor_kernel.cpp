@@ -64,6 +64,7 @@ struct Cubature {
     double sourceRadius;
     double tolerance;
     int maxDepth;
+    int cutDepth;
     uint64_t evaluations = 0;
 
     double height(const Vec3& x) const { return patches.normal[r].dot(x - patches.centroid[r]); }
@@ -78,12 +79,14 @@ struct Cubature {
             for (int g = 1; g <= 3 && order == 0; ++g)
                 if (std::pow(half, 2 * g) <= tolerance) order = g;
         }
-        // A cell that r's plane cuts holds points that see both of r's faces: split it, so the cut
-        // is resolved to the smallest cells.
-        if (order > 0 && std::abs(height(centre)) < diameter) {
+        // A cell that r's plane cuts holds points that see both of r's faces: split it, down to
+        // cutDepth (the cut runs across the whole patch, so deeper splits cost 2^depth cells).
+        if (order > 0 && depth < cutDepth && std::abs(height(centre)) < diameter) {
             const double h0 = height(patches.pointAt(s, u0, v0)), h1 = height(patches.pointAt(s, u0 + size, v0)),
                          h2 = height(patches.pointAt(s, u0 + size, v0 + size)), h3 = height(patches.pointAt(s, u0, v0 + size));
-            if (std::min({h0, h1, h2, h3}) < 0 && std::max({h0, h1, h2, h3}) > 0) order = 0;
+            // Corners on the plane (a patch touching r's plane along an edge) do not make a cut.
+            const double eps = 1e-9 * diameter;
+            if (std::min({h0, h1, h2, h3}) < -eps && std::max({h0, h1, h2, h3}) > eps) order = 0;
         }
         if (order == 0 && depth < maxDepth) {
             const double h = size / 2;
@@ -112,7 +115,7 @@ struct Cubature {
 AreaFactors unoccludedAreaFactors(const PatchSet& patches, size_t s, size_t r, const CubatureSettings& settings,
                                   uint64_t* evaluations) {
     Cubature c{patches, s, r, patches.corners[r].data(), patches.cornerCount[r], patches.boundingRadius(s),
-               settings.tolerance, settings.maxDepth};
+               settings.tolerance, settings.maxDepth, settings.cutDepth};
     AreaFactors out;
     c.cell(0, 0, 1, 0, out);
     if (evaluations) *evaluations += c.evaluations;

@@ -166,15 +166,21 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
                     const AreaFactors g = unoccludedAreaFactors(patches, iSmaller ? i : j, iSmaller ? j : i, cub, &myEvaluations);
                     F(i, j) = float(vis.fraction * g.front / patches.area[i]);
                     F(j, i) = float(vis.fraction * g.front / patches.area[j]);
-                    // Where one patch straddles the other's plane, part of it sees the other's back.
-                    const double backIJ = straddles(patches, j, i)
-                                              ? (iSmaller ? g.back : unoccludedAreaFactors(patches, i, j, cub, &myEvaluations).back)
-                                              : 0.0;
-                    const double backJI = straddles(patches, i, j)
-                                              ? (iSmaller ? unoccludedAreaFactors(patches, j, i, cub, &myEvaluations).back : g.back)
-                                              : 0.0;
-                    if (backIJ > 0) myBack.push_back({int(i), int(j), vis.fraction * backIJ});
-                    if (backJI > 0) myBack.push_back({int(j), int(i), vis.fraction * backJI});
+                    // Where one patch straddles the other's plane, part of it sees the other's back:
+                    // tested by rays of its own (a block's side is mostly seen from behind through
+                    // the block itself), and integrated only when some of them get through.
+                    auto backPart = [&](size_t from, size_t to, bool fromIsSource) {
+                        const Visibility vb = visibleFraction(patches, scene, from, to, 1, -1, settings.visibilityRays,
+                                                              settings.seed + 1);
+                        myRays += uint64_t(vb.rays);
+                        if (vb.fraction == 0) return 0.0;
+                        return vb.fraction *
+                               (fromIsSource ? g.back : unoccludedAreaFactors(patches, from, to, cub, &myEvaluations).back);
+                    };
+                    const double backIJ = straddles(patches, j, i) ? backPart(i, j, iSmaller) : 0.0;
+                    const double backJI = straddles(patches, i, j) ? backPart(j, i, !iSmaller) : 0.0;
+                    if (backIJ > 0) myBack.push_back({int(i), int(j), backIJ});
+                    if (backJI > 0) myBack.push_back({int(j), int(i), backJI});
                 } else if (jFrontOfI) {
                     // All of i lies behind j's plane: i's front reaches j's back.
                     myBack.push_back({int(i), int(j), vis.fraction * unoccludedAreaFactor(patches, i, j, cub, &myEvaluations)});

@@ -8,6 +8,8 @@
 #include <cstdint>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "mesh/patches.h"
 #include "solver/radiosity/form_factor_kernel.h"
 #include "solver/visibility.h"
@@ -36,19 +38,22 @@ struct FormFactorStats {
 
 class FormFactorMatrix {
 public:
+    using Dense = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
     FormFactorMatrix() = default;
-    explicit FormFactorMatrix(size_t n) : n_(n), values_(n * n, 0.0f) {}
-    size_t size() const { return n_; }
-    float operator()(size_t i, size_t j) const { return values_[i * n_ + j]; }
-    float& operator()(size_t i, size_t j) { return values_[i * n_ + j]; }
-    const float* row(size_t i) const { return values_.data() + i * n_; }
+    explicit FormFactorMatrix(size_t n) : values_(Dense::Zero(Eigen::Index(n), Eigen::Index(n))) {}
+    size_t size() const { return size_t(values_.rows()); }
+    float operator()(size_t i, size_t j) const { return values_(Eigen::Index(i), Eigen::Index(j)); }
+    float& operator()(size_t i, size_t j) { return values_(Eigen::Index(i), Eigen::Index(j)); }
+    // Row i as contiguous floats: the solvers' sweeps walk rows.
+    const float* row(size_t i) const { return values_.data() + i * size(); }
+    const Dense& dense() const { return values_; }
 
     std::vector<BackTransfer> backTransfers;
     FormFactorStats stats;
 
 private:
-    size_t n_ = 0;
-    std::vector<float> values_;
+    Dense values_;
 };
 
 // Bytes the dense matrix of n patches needs.
