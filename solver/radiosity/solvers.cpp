@@ -8,19 +8,6 @@
 namespace penumbra {
 namespace {
 
-// sum_j F(i,j) B_j for one row, three channels in one pass over the row.
-inline Rgb rowTimes(const FormFactorMatrix& F, size_t i, const std::vector<Rgb>& B) {
-    const float* row = F.row(i);
-    double h0 = 0, h1 = 0, h2 = 0;
-    for (size_t j = 0; j < F.size(); ++j) {
-        const double f = row[j];
-        h0 += f * B[j][0];
-        h1 += f * B[j][1];
-        h2 += f * B[j][2];
-    }
-    return Rgb(h0, h1, h2);
-}
-
 // Shared bookkeeping: history, progress, stop test.
 struct Run {
     const SolverSettings& settings;
@@ -80,7 +67,7 @@ public:
         for (int k = 0;; ++k) {
             const double residual = relativeResidual(s, B, gatherIrradiance(F, B));
             if (run.record(k, residual)) break;
-            for (size_t i = 0; i < s.size(); ++i) B[i] = s.emission[i] + s.reflectance[i] * rowTimes(F, i, B);
+            for (size_t i = 0; i < s.size(); ++i) B[i] = s.emission[i] + s.reflectance[i] * rowIrradiance(F, i, B);
             if (observer) observer(k + 1, B);
         }
         out.B = B;

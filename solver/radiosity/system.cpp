@@ -22,17 +22,7 @@ std::vector<Rgb> gatherIrradiance(const FormFactorMatrix& F, const std::vector<R
     const size_t n = F.size();
     std::vector<Rgb> H(n);
     parallelFor(int64_t(n), [&](int64_t begin, int64_t end) {
-        for (int64_t i = begin; i < end; ++i) {
-            const float* row = F.row(size_t(i));
-            double h0 = 0, h1 = 0, h2 = 0;
-            for (size_t j = 0; j < n; ++j) {
-                const double f = row[j];
-                h0 += f * B[j][0];
-                h1 += f * B[j][1];
-                h2 += f * B[j][2];
-            }
-            H[size_t(i)] = Rgb(h0, h1, h2);
-        }
+        for (int64_t i = begin; i < end; ++i) H[size_t(i)] = rowIrradiance(F, size_t(i), B);
     }, 16);
     return H;
 }

@@ -22,6 +22,20 @@ struct RadiositySystem {
 
 RadiositySystem buildSystem(const Scene& scene, const PatchSet& patches);
 
+// Irradiance sum_j F(i,j) B_j arriving at patch i's front face, W/m^2: one pass over row i for all
+// three channels.
+inline Rgb rowIrradiance(const FormFactorMatrix& F, size_t i, const std::vector<Rgb>& B) {
+    const float* row = F.row(i);
+    double h0 = 0, h1 = 0, h2 = 0;
+    for (size_t j = 0; j < F.size(); ++j) {
+        const double f = row[j];
+        h0 += f * B[j][0];
+        h1 += f * B[j][1];
+        h2 += f * B[j][2];
+    }
+    return Rgb(h0, h1, h2);
+}
+
 // Irradiance H_i = sum_j F(i,j) B_j arriving at every front face, W/m^2.
 std::vector<Rgb> gatherIrradiance(const FormFactorMatrix& F, const std::vector<Rgb>& B);
 
