@@ -21,10 +21,12 @@ SolveResult solve(const std::string& json, int patches, const std::string& solve
     return solveScene(test::sceneFromJson(json), o, observer);
 }
 
-std::string cornellBox() {
-    std::ifstream in(std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json");
+std::string sceneFile(const std::string& name) {
+    std::ifstream in(std::string(PENUMBRA_SOURCE_DIR) + "/scenes/" + name);
     return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
+
+std::string cornellBox() { return sceneFile("cornell-box.json"); }
 
 }  // namespace
 
@@ -42,19 +44,20 @@ TEST_P(Furnace, EveryPatchReachesEOverOneMinusRho) {
             ASSERT_NEAR(r.solution.B[i][c], expected, 0.005 * expected) << "patch " << i << ", rho " << rho;
 }
 
+TEST(Furnace, SceneFileReachesItsClosedForm) {
+    const SolveResult r = solve(sceneFile("white-furnace.json"), 200);
+    const double expected = kPi * 1.0 / (1 - 0.9);
+    for (size_t i = 0; i < r.patches.size(); ++i) ASSERT_NEAR(r.solution.B[i][1], expected, 0.005 * expected);
+}
+
 INSTANTIATE_TEST_SUITE_P(Extremes, Furnace,
                          ::testing::Combine(::testing::Values(0.5, 0.9, 0.99, 0.999),
                                             ::testing::Values("jacobi", "gauss-seidel", "southwell")));
 
 TEST(Energy, TwoSquaresExchangeTheClosedFormPower) {
-    // A black emitter and a black receiver, unit squares 1 apart: the receiver absorbs
-    // pi L_e A F = pi * 2 * 0.19982 W; the rest escapes.
-    const std::string json = R"({"materials": {"lamp": {"type": "diffuse", "reflectance": 0, "emission": 2},
-                                              "black": {"type": "diffuse", "reflectance": 0}},
-      "objects": [
-        {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]},
-        {"name": "receiver", "type": "quad", "material": "black", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]}]})";
-    const SolveResult r = solve(json, 200);
+    // scenes/parallel-squares.json: a black emitter and a black receiver, unit squares 1 apart; the
+    // receiver absorbs pi L_e A F = pi * 2 * 0.19982 W; the rest escapes.
+    const SolveResult r = solve(sceneFile("parallel-squares.json"), 200);
     Rgb receiver = Rgb::Zero();
     for (size_t i = 0; i < r.patches.size(); ++i)
         if (r.patches.object[i] == 1) receiver += r.power.absorbed[i];
@@ -148,4 +151,26 @@ TEST_F(Convergence, ResidualFallsMonotonicallyAndGaussSeidelIsFaster) {
             EXPECT_LT(r->history[k].residual, r->history[k - 1].residual) << "step " << k;
     }
     EXPECT_LT(gs.iterations, jacobi.iterations);
+}
+
+TEST(Energy, MirrorsAndGlassOccludeAndReportWhatTheyAbsorb) {
+    // Until specular transport exists (issue 3) mirrors and glass take no part in the exchange but
+    // block light and absorb it: a mirror square over the lamp absorbs pi L_e A F like a black one.
+    for (const char* material : {R"({"type": "mirror", "reflectance": 0.95})", R"({"type": "dielectric", "ior": 1.5})"}) {
+        const std::string json = cat(R"({"materials": {"lamp": {"type": "diffuse", "reflectance": 0, "emission": 2},
+                                                      "spec": )", material, R"(},
+          "objects": [
+            {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]},
+            {"name": "shiny", "type": "quad", "material": "spec", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]}]})");
+        const SolveResult r = solve(json, 200);
+        Rgb absorbed = Rgb::Zero();
+        for (size_t i = 0; i < r.patches.size(); ++i)
+            if (r.patches.object[i] == 1) {
+                absorbed += r.power.absorbed[i];
+                ASSERT_EQ(r.solution.B[i][0], 0.0);   // it sends nothing on
+            }
+        const double expected = kPi * 2 * 0.19982;
+        EXPECT_NEAR(absorbed[0], expected, 0.005 * expected) << material;
+        EXPECT_NEAR(r.power.totalAbsorbed[0] + r.power.escaped[0], r.power.totalEmitted[0], 1e-4 * r.power.totalEmitted[0]);
+    }
 }
