@@ -179,12 +179,6 @@ TriMesh refinedSoup(const PolygonSoup& soup, double h, const std::string& name) 
 
 }  // namespace
 
-double PatchSet::boundingRadius(size_t i) const {
-    double r = 0;
-    for (int k = 0; k < 4; ++k) r = std::max(r, (corners[i][size_t(k)] - centroid[i]).norm());
-    return r;
-}
-
 Vec3 PatchSet::pointAt(size_t i, double u, double v) const {
     const auto& c = corners[i];
     if (isTriangle(i)) return c[0] + u * ((1 - v) * (c[1] - c[0]) + v * (c[2] - c[0]));
@@ -217,6 +211,9 @@ void PatchSet::add(const std::array<Vec3, 4>& c, int count, int objectIndex, con
         const Vec3 g1 = (c[0] + c[1] + c[2]) / 3, g2 = (c[0] + c[2] + c[3]) / 3;
         centroid.push_back(a1 + a2 > 0 ? Vec3((a1 * g1 + a2 * g2) / (a1 + a2)) : Vec3((c[0] + c[1] + c[2] + c[3]) / 4));
     }
+    double r = 0;
+    for (const Vec3& corner : c) r = std::max(r, (corner - centroid.back()).norm());
+    radius.push_back(r);
 }
 
 double sceneArea(const Scene& scene) {

@@ -19,6 +19,7 @@ struct PatchSet {
     std::vector<Vec3> centroid;
     std::vector<double> area;                   // m^2
     std::vector<int> object;                    // index into Scene::objects
+    std::vector<double> radius;                 // smallest sphere about the centroid holding the patch
     // Display mesh: corners index shared vertices, so that radiosity can be interpolated per
     // surface. Vertices are never shared between objects.
     std::vector<std::array<int, 4>> cornerVertex;
@@ -26,8 +27,7 @@ struct PatchSet {
 
     size_t size() const { return area.size(); }
     bool isTriangle(size_t i) const { return cornerCount[i] == 3; }
-    // Radius of the smallest sphere about the centroid that holds the patch.
-    double boundingRadius(size_t i) const;
+    double boundingRadius(size_t i) const { return radius[i]; }
     // Point at parameters (u, v) in [0,1]^2: bilinear on quads, collapsed (Duffy) on triangles.
     Vec3 pointAt(size_t i, double u, double v) const;
     // |dP/du x dP/dv| at (u, v): the area element of pointAt.
