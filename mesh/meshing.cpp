@@ -123,6 +123,12 @@ PolyMesh cubeSphere(const SceneObject& o, double h) {
         const Vec3 p = o.toWorld * (o.center + lift * o.radius * cubePoint.normalized());
         return shared[key] = mesh.add_vertex(om(p));
     };
+    // A mirroring transform (negative determinant) would turn the facets inside out.
+    const bool mirrored = o.toWorld.linear().determinant() < 0;
+    auto triangle = [&](PolyMesh::VertexHandle a, PolyMesh::VertexHandle b, PolyMesh::VertexHandle c) {
+        if (mirrored) mesh.add_face(a, c, b);
+        else mesh.add_face(a, b, c);
+    };
     for (int axis = 0; axis < 3; ++axis)
         for (int sign = -1; sign <= 1; sign += 2) {
             Vec3 n = Vec3::Zero();
@@ -140,11 +146,11 @@ PolyMesh cubeSphere(const SceneObject& o, double h) {
                     const auto v00 = vertex(p(i, j)), v10 = vertex(p(i + 1, j)), v11 = vertex(p(i + 1, j + 1)),
                                v01 = vertex(p(i, j + 1));
                     if (ridgeAlongFirstDiagonal(p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1))) {
-                        mesh.add_face(v00, v10, v11);
-                        mesh.add_face(v00, v11, v01);
+                        triangle(v00, v10, v11);
+                        triangle(v00, v11, v01);
                     } else {
-                        mesh.add_face(v00, v10, v01);
-                        mesh.add_face(v10, v11, v01);
+                        triangle(v00, v10, v01);
+                        triangle(v10, v11, v01);
                     }
                 }
         }

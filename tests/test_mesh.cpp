@@ -102,6 +102,18 @@ TEST(Meshing, PatchCountFollowsTheTarget) {
     }
 }
 
+TEST(Meshing, MirroredSphereStillFacesOutward) {
+    // scale -1 on x mirrors the sphere: its facets must still face away from its centre.
+    const Scene scene = test::sceneFromJson(R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
+      "objects": [{"name": "s", "type": "sphere", "material": "m", "center": [1, 2, 3], "radius": 0.5,
+                   "transform": {"scale": [-1, 1, 1]}}]})");
+    MeshingOptions o;
+    o.targetPatches = 200;
+    const PatchSet p = meshScene(scene, o);
+    const Vec3 centre(-1, 2, 3);
+    for (size_t i = 0; i < p.size(); ++i) ASSERT_GT(p.normal[i].dot(p.centroid[i] - centre), 0) << "patch " << i;
+}
+
 TEST(Meshing, SphereFacesOutwardAndKeepsItsArea) {
     // A glowing sphere inside a black closed cube: every bit of its light reaches the cube (its
     // rows sum to 1), none returns, and its facets' area is close to 4 pi r^2.
