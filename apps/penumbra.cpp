@@ -78,8 +78,7 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
     writeSolution((dir / "solution.bin").string(), {scene.fingerprint, r.patches, r.solution.B, r.solution.display});
     writeFileAtomic((dir / "convergence.csv").string(), convergenceCsv(r));
     if (scene.hasCamera) {
-        RayScene rays(r.patches);
-        const Image view = renderRadiosityView(scene, scene.camera, r.patches, rays, corners, {s.viewSpp, common.seed});
+        const Image view = renderRadiosityView(scene, scene.camera, r.patches, *r.rays, corners, {s.viewSpp, common.seed});
         writeLinearImage(view, (dir / "radiosity.exr").string());
         writePreviewPng(view, (dir / "radiosity.png").string());
     }

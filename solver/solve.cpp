@@ -72,8 +72,8 @@ SolveResult solveScene(const Scene& scene, const SolveOptions& options, const St
     logInfo("form-factor matrix: ", n, " x ", n, " floats, ", double(formFactorMatrixBytes(n)) / (1 << 20), " MiB");
 
     Timer ffTimer;
-    RayScene rays(r.patches);
-    r.F = computeFormFactors(r.patches, rays, options.formFactors);
+    r.rays = std::make_shared<RayScene>(r.patches);
+    r.F = computeFormFactors(r.patches, *r.rays, options.formFactors);
     r.secondsFormFactors = ffTimer.seconds();
     const std::vector<double> rows = rowSums(r.F);
     r.rowSumMin = n ? *std::min_element(rows.begin(), rows.end()) : 0;

@@ -2,6 +2,7 @@
 // factors, solve, and account for the power. Stage timings and counters go into the report.
 #pragma once
 
+#include <memory>
 #include <string>
 
 #include "mesh/patches.h"
@@ -9,6 +10,7 @@
 #include "solver/radiosity/form_factors.h"
 #include "solver/radiosity/solvers.h"
 #include "solver/radiosity/system.h"
+#include "solver/visibility.h"
 
 namespace penumbra {
 
@@ -23,6 +25,7 @@ struct SolveOptions {
 struct SolveResult {
     std::string solverName;
     PatchSet patches;
+    std::shared_ptr<RayScene> rays;   // the patches' ray-tracing scene, for views of the result
     FormFactorMatrix F;
     RadiositySystem system;
     RadiositySolution solution;

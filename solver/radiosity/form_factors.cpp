@@ -12,24 +12,21 @@
 namespace penumbra {
 namespace {
 
-// Whether any part of patch b lies strictly in front of patch a's plane.
-bool inFront(const PatchSet& p, size_t a, size_t b) {
+// Where the corners of patch b lie relative to patch a's plane (beyond a tolerance, so corners on
+// the plane, as along a shared edge, count for neither side).
+struct PlaneSides {
+    bool front = false, behind = false;
+    bool straddles() const { return front && behind; }
+};
+PlaneSides planeSides(const PatchSet& p, size_t a, size_t b) {
     const double eps = 1e-9 * (p.boundingRadius(a) + p.boundingRadius(b));
-    for (int k = 0; k < p.cornerCount[b]; ++k)
-        if (p.normal[a].dot(p.corners[b][size_t(k)] - p.centroid[a]) > eps) return true;
-    return false;
-}
-
-// Whether patch b has corners strictly on both sides of patch a's plane.
-bool straddles(const PatchSet& p, size_t a, size_t b) {
-    const double eps = 1e-9 * (p.boundingRadius(a) + p.boundingRadius(b));
-    bool above = false, below = false;
+    PlaneSides sides;
     for (int k = 0; k < p.cornerCount[b]; ++k) {
         const double h = p.normal[a].dot(p.corners[b][size_t(k)] - p.centroid[a]);
-        above = above || h > eps;
-        below = below || h < -eps;
+        sides.front = sides.front || h > eps;
+        sides.behind = sides.behind || h < -eps;
     }
-    return above && below;
+    return sides;
 }
 
 // A point of patch i in stratum k of a side x side grid, jittered. Points keep a margin of 1e-3 of
@@ -101,13 +98,13 @@ Vec3 uniformPoint(const ClippedPolygon& c, Rng& rng) {
 // four times as many when the first ones disagree (a shadow boundary crosses the pair). The
 // endpoints are lifted off the faces that exchange light: sideA, sideB = +1 front, -1 back.
 // Where a patch straddles the other's plane, only its part on the facing side exchanges light
-// (the analytic factor clips the rest), so the segments are drawn from that part alone.
+// (the analytic factor clips the rest), so the segments are drawn from that part alone: `clipped`
+// says whether either patch straddles the other's plane.
 Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, size_t b, int sideA, int sideB,
-                           int base, uint64_t seed) {
+                           bool clipped, int base, uint64_t seed) {
     Rng rng(mixSeed(seed, a, b));
     const Vec3 na = sideA * p.normal[a], nb = sideB * p.normal[b];
     const Vec3 liftA = liftDistance(p, a) * na, liftB = liftDistance(p, b) * nb;
-    const bool clipped = straddles(p, a, b) || straddles(p, b, a);
     // The part of a in front of b's receiving face, and of b in front of a's sending face.
     const ClippedPolygon partA = clipped ? clipToSide(p, a, b, nb) : ClippedPolygon{};
     const ClippedPolygon partB = clipped ? clipToSide(p, b, a, na) : ClippedPolygon{};
@@ -145,13 +142,15 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
         for (int64_t ii = begin; ii < end; ++ii) {
             const size_t i = size_t(ii);
             for (size_t j = i + 1; j < n; ++j) {
-                const bool jFrontOfI = inFront(patches, i, j), iFrontOfJ = inFront(patches, j, i);
+                const PlaneSides jSeenByI = planeSides(patches, i, j), iSeenByJ = planeSides(patches, j, i);
+                const bool jFrontOfI = jSeenByI.front, iFrontOfJ = iSeenByJ.front;
+                const bool clipped = jSeenByI.straddles() || iSeenByJ.straddles();
                 if (!jFrontOfI && !iFrontOfJ) continue;
                 ++myPairs;
                 // Which faces exchange light: front-front, or one front to the other's back.
                 const int sideI = iFrontOfJ ? (jFrontOfI ? 1 : -1) : 1;
                 const int sideJ = jFrontOfI ? (iFrontOfJ ? 1 : -1) : 1;
-                const Visibility vis = visibleFraction(patches, scene, i, j, sideI, sideJ, settings.visibilityRays,
+                const Visibility vis = visibleFraction(patches, scene, i, j, sideI, sideJ, clipped, settings.visibilityRays,
                                                        settings.seed);
                 myRays += uint64_t(vis.rays);
                 if (vis.fraction == 0) {
@@ -170,15 +169,15 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
                     // tested by rays of its own (a block's side is mostly seen from behind through
                     // the block itself), and integrated only when some of them get through.
                     auto backPart = [&](size_t from, size_t to, bool fromIsSource) {
-                        const Visibility vb = visibleFraction(patches, scene, from, to, 1, -1, settings.visibilityRays,
+                        const Visibility vb = visibleFraction(patches, scene, from, to, 1, -1, clipped, settings.visibilityRays,
                                                               settings.seed + 1);
                         myRays += uint64_t(vb.rays);
                         if (vb.fraction == 0) return 0.0;
                         return vb.fraction *
                                (fromIsSource ? g.back : unoccludedAreaFactors(patches, from, to, cub, &myEvaluations).back);
                     };
-                    const double backIJ = straddles(patches, j, i) ? backPart(i, j, iSmaller) : 0.0;
-                    const double backJI = straddles(patches, i, j) ? backPart(j, i, !iSmaller) : 0.0;
+                    const double backIJ = iSeenByJ.straddles() ? backPart(i, j, iSmaller) : 0.0;
+                    const double backJI = jSeenByI.straddles() ? backPart(j, i, !iSmaller) : 0.0;
                     if (backIJ > 0) myBack.push_back({int(i), int(j), backIJ});
                     if (backJI > 0) myBack.push_back({int(j), int(i), backJI});
                 } else if (jFrontOfI) {
