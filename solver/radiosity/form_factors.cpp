@@ -147,9 +147,9 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
                 const bool clipped = jSeenByI.straddles() || iSeenByJ.straddles();
                 if (!jFrontOfI && !iFrontOfJ) continue;
                 ++myPairs;
-                // Which faces exchange light: front-front, or one front to the other's back.
-                const int sideI = iFrontOfJ ? (jFrontOfI ? 1 : -1) : 1;
-                const int sideJ = jFrontOfI ? (iFrontOfJ ? 1 : -1) : 1;
+                // Which faces exchange light: a patch sends from its front when the other lies in
+                // front of it; otherwise the other's front reaches its back.
+                const int sideI = jFrontOfI ? 1 : -1, sideJ = iFrontOfJ ? 1 : -1;
                 const Visibility vis = visibleFraction(patches, scene, i, j, sideI, sideJ, clipped, settings.visibilityRays,
                                                        settings.seed);
                 myRays += uint64_t(vis.rays);
