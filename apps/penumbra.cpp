@@ -13,6 +13,11 @@
 #include "io/report.h"
 #include "io/solution.h"
 #include "mesh/scene.h"
+#include "core/timer.h"
+#include "render/final_gather.h"
+#include "render/image_metrics.h"
+#include "render/path_tracer.h"
+#include "render/photon_map.h"
 #include "render/radiosity_view.h"
 #include "solver/solve.h"
 
@@ -34,10 +39,19 @@ struct SolveCli {
 };
 
 struct RenderCli {
-    std::string scene, out, solution, integrator, camera, resolution;
-    int spp = 4;
+    std::string scene, out, solution, integrator = "final-gather", camera, resolution;
+    int spp = 0;   // 0: the integrator's default
     double exposure = 0;
+    GatherSettings gather;
+    PhotonSettings photons;
 };
+
+// Samples per pixel that give a clean picture by default, per integrator.
+int defaultSpp(const std::string& integrator) {
+    if (integrator == "path") return 1024;
+    if (integrator == "final-gather") return 16;
+    return 4;
+}
 
 void addSolveOptions(CLI::App* cmd, SolveCli& s) {
     cmd->add_option("--patches", s.options.meshing.targetPatches, "About this many patches in all")
@@ -56,6 +70,9 @@ void addSolveOptions(CLI::App* cmd, SolveCli& s) {
     cmd->add_option("--ff-tolerance", s.options.formFactors.cubature.tolerance,
                     "Target relative error of each unoccluded form factor")
         ->capture_default_str()->check(CLI::Range(1e-12, 1.0));
+    cmd->add_option("--specular-rays", s.options.specular.raysPerPatch,
+                    "Rays per patch that trace light through mirrors and glass in the solve")
+        ->capture_default_str()->check(CLI::Range(1, 1 << 24));
     cmd->add_option("--max-memory", s.maxMemoryGiB, "Memory budget in GiB for the matrix (default: what is available)")
         ->check(CLI::PositiveNumber);
 }
@@ -108,43 +125,59 @@ Camera cameraFor(const Scene& scene, const RenderCli& c) {
     return camera;
 }
 
-int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
-    const Scene scene = loadScene(c.scene);
-    const Camera camera = cameraFor(scene, c);
-    std::string integrator = c.integrator;
-    if (integrator.empty()) {
-        logWarning("the final-gather integrator is not built yet (issue 3): rendering the radiosity view");
-        integrator = "radiosity";
-    }
-    if (integrator == "final-gather" || integrator == "path")
-        throw Error(cat("--integrator ", integrator, ": not built yet (issue 3); use --integrator radiosity"));
-    if (integrator != "radiosity")
-        throw Error(cat("--integrator: unknown integrator '", integrator, "' (known: radiosity, final-gather, path)"));
-    const std::string ext = std::filesystem::path(c.out).extension().string();
-    if (ext != ".exr" && ext != ".hdr") throw Error(cat("--out ", c.out, ": expected an .exr or .hdr file name"));
-
-    StoredSolution stored;
+StoredSolution solutionFor(const Scene& scene, const RenderCli& c, SolveCli& s, const CommonOptions& common) {
     if (!c.solution.empty()) {
-        stored = readSolution((std::filesystem::path(c.solution) / "solution.bin").string());
+        StoredSolution stored = readSolution((std::filesystem::path(c.solution) / "solution.bin").string());
         if (stored.sceneFingerprint != scene.fingerprint)
             throw Error(cat(c.solution, ": this solution was solved for another version of ", c.scene,
                             " (or another scene): solve again"));
         for (int o : stored.patches.object)
             if (o < 0 || size_t(o) >= scene.objects.size()) throw Error(cat(c.solution, ": solution file is damaged"));
-    } else {
-        s.options.formFactors.seed = common.seed;
-        s.options.maxMemoryBytes = s.maxMemoryGiB * double(1ull << 30);
-        SolveResult r = solveScene(scene, s.options);
-        stored = {scene.fingerprint, std::move(r.patches), r.solution.B, r.solution.display};
+        return stored;
     }
-    const auto corners = interpolateCorners(stored.patches, stored.display);
-    RayScene rays(stored.patches);
-    const Image image = renderRadiosityView(scene, camera, stored.patches, rays, corners, {c.spp, common.seed});
+    logInfo("no --solution given: solving first");
+    s.options.formFactors.seed = common.seed;
+    s.options.maxMemoryBytes = s.maxMemoryGiB * double(1ull << 30);
+    SolveResult r = solveScene(scene, s.options);
+    return {scene.fingerprint, std::move(r.patches), r.solution.B, r.solution.display};
+}
+
+int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
+    const Scene scene = loadScene(c.scene);
+    const Camera camera = cameraFor(scene, c);
+    const std::string& integrator = c.integrator;
+    if (integrator != "radiosity" && integrator != "final-gather" && integrator != "path")
+        throw Error(cat("--integrator: unknown integrator '", integrator, "' (known: radiosity, final-gather, path)"));
+    const std::string ext = std::filesystem::path(c.out).extension().string();
+    if (ext != ".exr" && ext != ".hdr") throw Error(cat("--out ", c.out, ": expected an .exr or .hdr file name"));
+    const int spp = c.spp > 0 ? c.spp : defaultSpp(integrator);
+
+    Image image;
+    Timer timer;
+    if (integrator == "path") {
+        // The reference needs no solve: only the geometry, meshed as a solve would mesh it.
+        const PatchSet patches = meshScene(scene, s.options.meshing);
+        const SceneTracer tracer(scene, patches);
+        image = renderPath(tracer, camera, spp, common.seed);
+    } else {
+        const StoredSolution stored = solutionFor(scene, c, s, common);
+        timer = Timer();
+        if (integrator == "radiosity") {
+            const auto corners = interpolateCorners(stored.patches, stored.display);
+            RayScene rays(stored.patches);
+            image = renderRadiosityView(scene, camera, stored.patches, rays, corners, {spp, common.seed});
+        } else {
+            image = renderSolvedScene(scene, stored.patches, stored.display, camera, spp, common.seed, c.gather,
+                                      c.photons);
+        }
+    }
+    const double seconds = timer.seconds();
     const std::string parent = std::filesystem::path(c.out).parent_path().string();
     if (!parent.empty()) ensureDirectory(parent);
     writeLinearImage(image, c.out);
     writePreviewPng(image, previewPathFor(c.out), c.exposure);
-    logInfo("wrote ", c.out, " and ", previewPathFor(c.out), " (", camera.width, "x", camera.height, ")");
+    logInfo("wrote ", c.out, " and ", previewPathFor(c.out), " (", camera.width, "x", camera.height, ", ", integrator,
+            ", ", spp, " spp) in ", seconds, " s");
     return 0;
 }
 
@@ -172,12 +205,29 @@ int main(int argc, char** argv) {
     renderCmd->add_option("scene", render.scene, "Scene JSON file")->required();
     renderCmd->add_option("--out", render.out, "Output image (.exr or .hdr); a .png preview is written beside it")->required();
     renderCmd->add_option("--solution", render.solution, "Directory of a previous solve to reuse");
-    renderCmd->add_option("--integrator", render.integrator, "radiosity | final-gather | path");
-    renderCmd->add_option("--spp", render.spp, "Samples per pixel")->capture_default_str()->check(CLI::Range(1, 1 << 20));
+    renderCmd->add_option("--integrator", render.integrator, "final-gather | path | radiosity")->capture_default_str();
+    renderCmd->add_option("--spp", render.spp, "Samples per pixel (default: final-gather 16, path 1024, radiosity 4)")
+        ->check(CLI::Range(1, 1 << 20));
+    renderCmd->add_option("--direct-samples", render.gather.directSamples,
+                          "Final gather: emitter samples per camera sample")
+        ->capture_default_str()->check(CLI::Range(1, 4096));
+    renderCmd->add_option("--gather-rays", render.gather.gatherRays, "Final gather: gather rays per camera sample")
+        ->capture_default_str()->check(CLI::Range(1, 65536));
+    renderCmd->add_option("--photons", render.photons.photons, "Caustic photons emitted")
+        ->capture_default_str()->check(CLI::Range(int64_t(1), int64_t(1) << 34));
+    renderCmd->add_option("--photon-k", render.photons.nearest, "Photons per caustic density estimate")
+        ->capture_default_str()->check(CLI::Range(1, 100000));
+    renderCmd->add_option("--max-depth", render.gather.maxSpecularDepth, "Mirror and glass bounces per path")
+        ->capture_default_str()->check(CLI::Range(0, 1000));
     renderCmd->add_option("--resolution", render.resolution, "WIDTHxHEIGHT, overrides the camera's");
     renderCmd->add_option("--camera", render.camera, "Camera as JSON, overrides the scene's");
     renderCmd->add_option("--exposure", render.exposure, "Exposure of the PNG preview, in stops");
     addSolveOptions(renderCmd, renderSolve);
+
+    std::string compareImage, compareReference;
+    CLI::App* compareCmd = app.add_subcommand("compare", "Compare an image with a reference (e.g. a path-traced one)");
+    compareCmd->add_option("image", compareImage, "Image (.exr or .hdr)")->required();
+    compareCmd->add_option("reference", compareReference, "Reference image of the same size")->required();
 
     CLI::App* viewCmd = app.add_subcommand("view", "Browse a solved scene interactively");
     std::string viewScene, viewSolution;
@@ -200,6 +250,13 @@ int main(int argc, char** argv) {
         setupLogging(common);
         if (*solveCmd) return runSolve(solve, common);
         if (*renderCmd) return runRender(render, renderSolve, common);
+        if (*compareCmd) {
+            const Image a = readLinearImage(compareImage), ref = readLinearImage(compareReference);
+            const ImageError raw = compareImages(a, ref), blurred = compareBlurred(a, ref);
+            std::printf("mean relative error %.4f (after 5x5 box blur %.4f), RMSE %.6g, brightness ratio %.4f\n",
+                        raw.meanRelative, blurred.meanRelative, raw.rmse, raw.meanRatio);
+            return 0;
+        }
         if (*viewCmd)
             throw Error("view: the interactive viewer is not built yet (issue 4); render the solved radiosity with "
                         "`penumbra render SCENE --solution DIR --integrator radiosity --out IMAGE.exr`");

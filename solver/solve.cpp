@@ -6,6 +6,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "core/timer.h"
+#include "solver/tracer.h"
 #include "solver/visibility.h"
 
 namespace penumbra {
@@ -80,6 +81,15 @@ SolveResult solveScene(const Scene& scene, const SolveOptions& options, const St
     r.rowSumMax = n ? *std::max_element(rows.begin(), rows.end()) : 0;
 
     r.system = buildSystem(scene, r.patches);
+    if (scene.hasSpecular()) {
+        const SceneTracer tracer(scene, r.patches);
+        SpecularSettings specular = options.specular;
+        specular.seed = options.formFactors.seed;
+        r.system.transport = computeSpecularTransport(scene, r.patches, r.F, tracer, specular);
+        r.secondsSpecular = r.system.transport.seconds;
+    } else {
+        logInfo("no mirrors or glass in the scene: no specular transport");
+    }
     checkSteadyState(scene, r.system, rows);
     Timer solveTimer;
     r.solution = solver->solve(r.F, r.system, options.solverSettings, observer);

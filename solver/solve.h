@@ -17,6 +17,7 @@ namespace penumbra {
 struct SolveOptions {
     MeshingOptions meshing;
     FormFactorSettings formFactors;
+    SpecularSettings specular;
     std::string solver = "gauss-seidel";
     SolverSettings solverSettings;
     double maxMemoryBytes = 0;   // 0: what the machine has available
@@ -30,7 +31,7 @@ struct SolveResult {
     RadiositySystem system;
     RadiositySolution solution;
     PowerBalance power;
-    double secondsMeshing = 0, secondsFormFactors = 0, secondsSolve = 0;
+    double secondsMeshing = 0, secondsFormFactors = 0, secondsSpecular = 0, secondsSolve = 0;
     double rowSumMin = 0, rowSumMax = 0;   // front-face row sums (closed scenes: 1 within error)
 };
 

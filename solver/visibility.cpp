@@ -32,7 +32,10 @@ struct RayScene::Impl {
     }
 };
 
-RayScene::RayScene(const PatchSet& patches) : impl_(std::make_unique<Impl>()) {
+RayScene::RayScene(const PatchSet& patches) : RayScene(patches, {}, {}) {}
+
+RayScene::RayScene(const PatchSet& patches, const std::vector<RaySphere>& spheres, const std::vector<char>& skipPatch)
+    : impl_(std::make_unique<Impl>()) {
     prepareTracingThread();
     impl_->device = rtcNewDevice("verbose=0");
     if (!impl_->device) throw Error(cat("Embree: cannot create a device (error ", int(rtcGetDeviceError(nullptr)), ")"));
@@ -50,15 +53,31 @@ RayScene::RayScene(const PatchSet& patches) : impl_(std::make_unique<Impl>()) {
                                                               4 * sizeof(unsigned), n));
     for (size_t i = 0; i < n; ++i)
         for (size_t k = 0; k < 4; ++k) {
-            const Vec3& p = patches.corners[i][k];
+            // A skipped patch collapses to a point, which no ray hits; ids stay patch indices.
+            const bool skip = i < skipPatch.size() && skipPatch[i];
+            const Vec3& p = patches.corners[i][skip ? 0 : k];
             vb[3 * (4 * i + k) + 0] = float(p.x());
             vb[3 * (4 * i + k) + 1] = float(p.y());
             vb[3 * (4 * i + k) + 2] = float(p.z());
             ib[4 * i + k] = unsigned(4 * i + k);
         }
     rtcCommitGeometry(geom);
-    rtcAttachGeometry(impl_->scene, geom);
+    rtcAttachGeometryByID(impl_->scene, geom, 0);
     rtcReleaseGeometry(geom);
+    if (!spheres.empty()) {
+        RTCGeometry points = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+        auto* pb = static_cast<float*>(rtcSetNewGeometryBuffer(points, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
+                                                               4 * sizeof(float), spheres.size()));
+        for (size_t i = 0; i < spheres.size(); ++i) {
+            pb[4 * i + 0] = float(spheres[i].center.x());
+            pb[4 * i + 1] = float(spheres[i].center.y());
+            pb[4 * i + 2] = float(spheres[i].center.z());
+            pb[4 * i + 3] = float(spheres[i].radius);
+        }
+        rtcCommitGeometry(points);
+        rtcAttachGeometryByID(impl_->scene, points, 1);
+        rtcReleaseGeometry(points);
+    }
     rtcCommitScene(impl_->scene);
     impl_->check("building the ray-tracing scene");
 }
@@ -110,7 +129,10 @@ Hit RayScene::intersect(const Vec3& origin, const Vec3& dir, double tMin, double
     rtcIntersect1(impl_->scene, &context, &rh);
     Hit hit;
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
-    hit.patch = int(rh.hit.primID);
+    if (rh.hit.geomID == 0)
+        hit.patch = int(rh.hit.primID);
+    else
+        hit.sphere = int(rh.hit.primID);
     hit.t = rh.ray.tfar;
     hit.u = rh.hit.u;
     hit.v = rh.hit.v;

@@ -1,18 +1,28 @@
 // Ray queries against the patch geometry: the only module that sees Embree. One scene of quads
 // (triangles repeat their last corner), committed once; primitive id == patch index. Both faces of
-// every patch occlude. Embree errors become Error exceptions with context.
+// every patch occlude. Optionally, exact spheres (for mirrors and glass, whose facets would show)
+// replace the patches of their objects. Embree errors become Error exceptions with context.
 #pragma once
 
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "core/math.h"
 #include "mesh/patches.h"
 
 namespace penumbra {
 
+// An exact sphere in the ray scene, in metres.
+struct RaySphere {
+    Vec3 center;
+    double radius = 0;
+};
+
 struct Hit {
-    int patch = -1;          // -1: the ray escaped
+    int patch = -1;          // the patch hit, or -1
+    int sphere = -1;         // the exact sphere hit (index into the constructor's list), or -1
+    bool found() const { return patch >= 0 || sphere >= 0; }
     double t = 0;
     double u = 0, v = 0;     // Embree's primitive coordinates (quad parametrisation)
     Vec3 geometricNormal;    // unnormalised, as Embree reports it
@@ -21,6 +31,8 @@ struct Hit {
 class RayScene {
 public:
     explicit RayScene(const PatchSet& patches);
+    // Patches with skipPatch[i] != 0 are left out (they never hit); `spheres` are added.
+    RayScene(const PatchSet& patches, const std::vector<RaySphere>& spheres, const std::vector<char>& skipPatch);
     ~RayScene();
     RayScene(const RayScene&) = delete;
     RayScene& operator=(const RayScene&) = delete;

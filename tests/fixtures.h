@@ -2,6 +2,7 @@
 // loader, and sums of patch-level results per object.
 #pragma once
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -43,6 +44,31 @@ inline double objectFormFactor(const SolveResult& r, int a, int b) {
             if (r.patches.object[j] == b) num += r.patches.area[i] * double(r.F(i, j));
     }
     return num / area;
+}
+
+inline SolveResult solve(const std::string& json, int patches, const std::string& solver = "gauss-seidel",
+                         double tolerance = 1e-6, const StepObserver& observer = {}) {
+    SolveOptions o;
+    o.meshing.targetPatches = patches;
+    o.solver = solver;
+    o.solverSettings.tolerance = tolerance;
+    o.solverSettings.maxIterations = 200000;
+    return solveScene(sceneFromJson(json), o, observer);
+}
+
+// The text of a scene file of the project's scenes/ folder.
+inline std::string sceneFile(const std::string& name) {
+    std::ifstream in(std::string(PENUMBRA_SOURCE_DIR) + "/scenes/" + name);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+// Howell C-11: parallel, directly opposed rectangles a x b at distance c.
+inline double parallelRectangles(double a, double b, double c) {
+    const double X = a / c, Y = b / c;
+    return 2 / (kPi * X * Y) *
+           (std::log(std::sqrt((1 + X * X) * (1 + Y * Y) / (1 + X * X + Y * Y))) +
+            X * std::sqrt(1 + Y * Y) * std::atan(X / std::sqrt(1 + Y * Y)) +
+            Y * std::sqrt(1 + X * X) * std::atan(Y / std::sqrt(1 + X * X)) - X * std::atan(X) - Y * std::atan(Y));
 }
 
 // A unit cube of six inward-facing quads, all of material "m" (given as JSON).

@@ -12,15 +12,6 @@ using namespace penumbra;
 
 namespace {
 
-// Howell C-11: parallel, directly opposed rectangles a x b at distance c.
-double parallelRectangles(double a, double b, double c) {
-    const double X = a / c, Y = b / c;
-    return 2 / (kPi * X * Y) *
-           (std::log(std::sqrt((1 + X * X) * (1 + Y * Y) / (1 + X * X + Y * Y))) +
-            X * std::sqrt(1 + Y * Y) * std::atan(X / std::sqrt(1 + Y * Y)) +
-            Y * std::sqrt(1 + X * X) * std::atan(Y / std::sqrt(1 + X * X)) - X * std::atan(X) - Y * std::atan(Y));
-}
-
 // Howell C-14: perpendicular rectangles sharing an edge of length l, widths w (from) and h (to).
 double perpendicularRectangles(double l, double w, double h) {
     const double H = h / l, W = w / l;
@@ -52,7 +43,7 @@ SolveResult solveWith(const std::string& json, int patches) {
 
 TEST(FormFactorClosedForms, HowellValuesMatchTheIssue) {
     // The catalogue formulas themselves, against the published values for unit squares.
-    EXPECT_NEAR(parallelRectangles(1, 1, 1), 0.19982, 1e-5);
+    EXPECT_NEAR(test::parallelRectangles(1, 1, 1), 0.19982, 1e-5);
     EXPECT_NEAR(perpendicularRectangles(1, 1, 1), 0.20004, 1e-5);
 }
 

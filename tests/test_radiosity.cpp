@@ -12,20 +12,8 @@ using namespace penumbra;
 
 namespace {
 
-SolveResult solve(const std::string& json, int patches, const std::string& solver = "gauss-seidel",
-                  double tolerance = 1e-6, const StepObserver& observer = {}) {
-    SolveOptions o;
-    o.meshing.targetPatches = patches;
-    o.solver = solver;
-    o.solverSettings.tolerance = tolerance;
-    o.solverSettings.maxIterations = 200000;
-    return solveScene(test::sceneFromJson(json), o, observer);
-}
-
-std::string sceneFile(const std::string& name) {
-    std::ifstream in(std::string(PENUMBRA_SOURCE_DIR) + "/scenes/" + name);
-    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
+using test::sceneFile;
+using test::solve;
 
 std::string cornellBox() { return sceneFile("cornell-box.json"); }
 
@@ -152,28 +140,6 @@ TEST_F(Convergence, ResidualFallsMonotonicallyAndGaussSeidelIsFaster) {
             EXPECT_LT(r->history[k].residual, r->history[k - 1].residual) << "step " << k;
     }
     EXPECT_LT(gs.iterations, jacobi.iterations);
-}
-
-TEST(Energy, MirrorsAndGlassOccludeAndReportWhatTheyAbsorb) {
-    // Until specular transport exists (issue 3) mirrors and glass take no part in the exchange but
-    // block light and absorb it: a mirror square over the lamp absorbs pi L_e A F like a black one.
-    for (const char* material : {R"({"type": "mirror", "reflectance": 0.95})", R"({"type": "dielectric", "ior": 1.5})"}) {
-        const std::string json = cat(R"({"materials": {"lamp": {"type": "diffuse", "reflectance": 0, "emission": 2},
-                                                      "spec": )", material, R"(},
-          "objects": [
-            {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]},
-            {"name": "shiny", "type": "quad", "material": "spec", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]}]})");
-        const SolveResult r = solve(json, 200);
-        Rgb absorbed = Rgb::Zero();
-        for (size_t i = 0; i < r.patches.size(); ++i)
-            if (r.patches.object[i] == 1) {
-                absorbed += r.power.absorbed[i];
-                ASSERT_EQ(r.solution.B[i][0], 0.0);   // it sends nothing on
-            }
-        const double expected = kPi * 2 * 0.19982;
-        EXPECT_NEAR(absorbed[0], expected, 0.005 * expected) << material;
-        EXPECT_NEAR(r.power.totalAbsorbed[0] + r.power.escaped[0], r.power.totalEmitted[0], 1e-4 * r.power.totalEmitted[0]);
-    }
 }
 
 TEST(Determinism, ResultsDoNotDependOnTheThreadCount) {

@@ -43,7 +43,7 @@ public:
         std::vector<Rgb> B = s.emission, next(s.size());
         for (int k = 0;; ++k) {
             // next = E + rho F B; its difference from B is the residual of B.
-            const std::vector<Rgb> H = gatherIrradiance(F, B);
+            const std::vector<Rgb> H = gatherIrradiance(s, F, B);
             for (size_t i = 0; i < s.size(); ++i) next[i] = s.emission[i] + s.reflectance[i] * H[i];
             const double residual = relativeResidual(s, B, H);
             if (run.record(k, residual)) break;
@@ -65,9 +65,9 @@ public:
         Run run(settings, out, "gauss-seidel");
         std::vector<Rgb> B = s.emission;
         for (int k = 0;; ++k) {
-            const double residual = relativeResidual(s, B, gatherIrradiance(F, B));
+            const double residual = relativeResidual(s, B, gatherIrradiance(s, F, B));
             if (run.record(k, residual)) break;
-            for (size_t i = 0; i < s.size(); ++i) B[i] = s.emission[i] + s.reflectance[i] * rowIrradiance(F, i, B);
+            for (size_t i = 0; i < s.size(); ++i) B[i] = s.emission[i] + s.reflectance[i] * irradianceAt(s, F, i, B);
             if (observer) observer(k + 1, B);
         }
         out.B = B;
@@ -112,6 +112,11 @@ public:
                 const double ai = s.area[best];
                 for (size_t j = 0; j < n; ++j)
                     if (row[j] != 0) unshot[j] += s.reflectance[j] * (ai * row[j] / s.area[j]) * dB;
+                if (!s.transport.empty())
+                    for (size_t k = s.transport.outStart[best]; k < s.transport.outStart[best + 1]; ++k) {
+                        const size_t j = size_t(s.transport.outTarget[k]);
+                        unshot[j] += s.reflectance[j] * s.transport.outWeight[k] * dB;
+                    }
             }
             // The unshot vector is the exact residual E + rho F B - B; summing it afresh each round
             // keeps rounding from accumulating in the running total.

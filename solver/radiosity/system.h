@@ -1,6 +1,7 @@
-// The radiosity system B = E + diag(rho) F B per colour channel, in exitance (W/m^2). Mirrors and
-// glass enter with rho = 0 until the specular transport of the final-gather issue: they occlude and
-// absorb what reaches them, so the power balance still closes.
+// The radiosity system B = E + diag(rho) (F B + S B) per colour channel, in exitance (W/m^2): F the
+// dense form factors between patches, S the sparse transfers through mirrors and glass
+// (specular_transport.h). Mirror and glass patches themselves have B = 0: what reaches them is
+// passed on by S or absorbed.
 #pragma once
 
 #include <vector>
@@ -9,6 +10,7 @@
 #include "mesh/patches.h"
 #include "mesh/scene.h"
 #include "solver/radiosity/form_factors.h"
+#include "solver/radiosity/specular_transport.h"
 
 namespace penumbra {
 
@@ -16,6 +18,9 @@ struct RadiositySystem {
     std::vector<double> area;        // m^2
     std::vector<Rgb> reflectance;    // diffuse albedo of the front face
     std::vector<Rgb> emission;       // exitance E = pi L_e of the front face, W/m^2
+    std::vector<int> object;         // the scene object of each patch
+    std::vector<char> specular;      // 1 for mirror and glass patches
+    SpecularTransport transport;     // empty without mirrors and glass
 
     size_t size() const { return area.size(); }
 };
@@ -36,8 +41,13 @@ inline Rgb rowIrradiance(const FormFactorMatrix& F, size_t i, const std::vector<
     return Rgb(h0, h1, h2);
 }
 
-// Irradiance H_i = sum_j F(i,j) B_j arriving at every front face, W/m^2.
-std::vector<Rgb> gatherIrradiance(const FormFactorMatrix& F, const std::vector<Rgb>& B);
+// Irradiance at patch i's front face from all patches, directly and through mirrors and glass.
+inline Rgb irradianceAt(const RadiositySystem& s, const FormFactorMatrix& F, size_t i, const std::vector<Rgb>& B) {
+    return rowIrradiance(F, i, B) + s.transport.incoming(i, B);
+}
+
+// Irradiance H_i arriving at every front face, W/m^2.
+std::vector<Rgb> gatherIrradiance(const RadiositySystem& s, const FormFactorMatrix& F, const std::vector<Rgb>& B);
 
 // Relative residual: sum_i A_i |E_i + rho_i H_i - B_i| over sum_i A_i E_i, all channels together.
 // It is the fraction of the emitted power not yet accounted for (the unshot power).

@@ -1,0 +1,53 @@
+// Smooth-surface optics and the sampling of diffuse directions, shared by the specular transport of
+// the solve, the photon pass and both integrators. Directions are unit vectors; a normal points to
+// the side the light arrives from unless said otherwise.
+#pragma once
+
+#include <cmath>
+#include <optional>
+
+#include "core/math.h"
+#include "core/rng.h"
+
+namespace penumbra {
+
+// Mirror direction of `d` (travelling towards the surface) about the normal n.
+inline Vec3 reflect(const Vec3& d, const Vec3& n) { return d - 2 * d.dot(n) * n; }
+
+// Unpolarised Fresnel reflectance of a smooth dielectric interface, for light arriving with cosine
+// `cosIncident` (> 0) to the normal from a medium of index `etaFrom` into one of index `etaTo`.
+// Returns 1 beyond the critical angle (total internal reflection).
+inline double fresnelDielectric(double cosIncident, double etaFrom, double etaTo) {
+    cosIncident = std::min(1.0, std::abs(cosIncident));
+    const double sinT = etaFrom / etaTo * std::sqrt(std::max(0.0, 1 - cosIncident * cosIncident));
+    if (sinT >= 1) return 1;
+    const double cosT = std::sqrt(std::max(0.0, 1 - sinT * sinT));
+    const double rs = (etaFrom * cosIncident - etaTo * cosT) / (etaFrom * cosIncident + etaTo * cosT);
+    const double rp = (etaTo * cosIncident - etaFrom * cosT) / (etaTo * cosIncident + etaFrom * cosT);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+// Snell refraction of `d` through a surface whose normal n faces the incoming side, from index
+// etaFrom to etaTo. Empty beyond the critical angle.
+inline std::optional<Vec3> refract(const Vec3& d, const Vec3& n, double etaFrom, double etaTo) {
+    const double eta = etaFrom / etaTo;
+    const double cosI = -d.dot(n);
+    const double sin2T = eta * eta * std::max(0.0, 1 - cosI * cosI);
+    if (sin2T >= 1) return std::nullopt;
+    const double cosT = std::sqrt(1 - sin2T);
+    return Vec3((eta * d + (eta * cosI - cosT) * n).normalized());
+}
+
+// Cosine-distributed direction about the unit normal n (pdf cos(theta) / pi), from two uniforms.
+inline Vec3 cosineDirection(const Vec3& n, double u1, double u2) {
+    const double r = std::sqrt(u1), phi = 2 * kPi * u2;
+    Vec3 t, b;
+    orthonormalBasis(n, t, b);
+    return (r * std::cos(phi) * t + r * std::sin(phi) * b + std::sqrt(std::max(0.0, 1 - u1)) * n).normalized();
+}
+inline Vec3 cosineDirection(const Vec3& n, Rng& rng) {
+    const double u1 = rng.uniform();
+    return cosineDirection(n, u1, rng.uniform());
+}
+
+}  // namespace penumbra

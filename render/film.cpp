@@ -1,0 +1,38 @@
+#include "render/film.h"
+
+#include "core/parallel.h"
+#include "core/progress.h"
+#include "render/camera.h"
+#include "solver/visibility.h"
+
+namespace penumbra {
+
+Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
+                   const RadianceFn& radiance) {
+    const PinholeCamera cam(camera);
+    Image image(camera.width, camera.height);
+    int side = 1;
+    while (side * side < samplesPerPixel) ++side;
+    const int spp = side * side;
+    Progress progress(title, camera.height);
+    parallelFor(camera.height, [&](int64_t y0, int64_t y1) {
+        prepareTracingThread();
+        for (int64_t y = y0; y < y1; ++y) {
+            for (int x = 0; x < camera.width; ++x) {
+                Rng rng(mixSeed(seed, uint64_t(y), uint64_t(x)));
+                Rgb sum = Rgb::Zero();
+                for (int s = 0; s < spp; ++s) {
+                    const double px = x + ((s % side) + rng.uniform()) / side;
+                    const double py = double(y) + ((s / side) + rng.uniform()) / side;
+                    sum += radiance(cam.origin(), cam.direction(px, py), rng);
+                }
+                image.set(x, int(y), sum / spp);
+            }
+            progress.update();
+        }
+    });
+    progress.done();
+    return image;
+}
+
+}  // namespace penumbra

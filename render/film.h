@@ -1,0 +1,22 @@
+// The pixel loop every integrator shares: stratified samples over each pixel's square (the
+// contract's one-pixel box filter), rows spread over the threads, one random stream per pixel so
+// the image does not depend on the thread count, and a progress bar.
+#pragma once
+
+#include <functional>
+
+#include "core/math.h"
+#include "core/rng.h"
+#include "mesh/scene.h"
+#include "render/image.h"
+
+namespace penumbra {
+
+// Radiance arriving at the camera along origin + t dir.
+using RadianceFn = std::function<Rgb(const Vec3& origin, const Vec3& dir, Rng& rng)>;
+
+// Renders with about `samplesPerPixel` samples (rounded up to a square number for stratification).
+Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
+                   const RadianceFn& radiance);
+
+}  // namespace penumbra

@@ -1,0 +1,121 @@
+#include "render/final_gather.h"
+
+#include <memory>
+
+#include "core/log.h"
+#include "core/optics.h"
+#include "render/radiosity_view.h"
+
+namespace penumbra {
+
+FinalGather::FinalGather(const SceneTracer& tracer, const std::vector<std::array<Rgb, 4>>& cornerRadiosity,
+                         const PhotonMap* caustics, const GatherSettings& settings)
+    : tracer_(tracer), corners_(cornerRadiosity), caustics_(caustics), settings_(settings) {}
+
+Rgb FinalGather::radiosityAt(const SurfaceHit& y) const {
+    return interpolateAt(tracer_.patches(), size_t(y.patch), y.u, y.v, corners_[size_t(y.patch)]);
+}
+
+Rgb FinalGather::trace(const Vec3& origin, const Vec3& dir, Rng& rng, int depth) const {
+    const SurfaceHit hit = tracer_.trace(origin, dir);
+    if (!hit.found) return Rgb::Zero();
+    const Material& m = *hit.material;
+    if (m.type == MaterialType::Diffuse) {
+        if (!hit.frontFacing(dir)) return Rgb::Zero();
+        return m.emission + reflected(hit, rng, 0);
+    }
+    if (depth >= settings_.maxSpecularDepth) return Rgb::Zero();
+    SpecularBranch branches[2];
+    const int count = specularBranches(hit, dir, branches);
+    Rgb L = Rgb::Zero();
+    for (int b = 0; b < count; ++b)
+        if (branches[b].weight.maxCoeff() >= settings_.minThroughput)
+            L += branches[b].weight * trace(tracer_.offset(hit, branches[b].dir), branches[b].dir, rng, depth + 1);
+    return L;
+}
+
+Rgb FinalGather::reflected(const SurfaceHit& x, Rng& rng, int level) const {
+    const Rgb& rho = x.material->reflectance;
+    if ((rho <= 0).all()) return Rgb::Zero();
+    Rgb E = directIrradiance(x, rng, level == 0 ? settings_.directSamples : 1);
+    if (caustics_) E += caustics_->irradiance(x.point, x.normal);
+    E += indirectIrradiance(x, rng, level == 0 ? settings_.gatherRays : 1, level);
+    return rho * kInvPi * E;
+}
+
+Rgb FinalGather::directIrradiance(const SurfaceHit& x, Rng& rng, int samples) const {
+    if (!tracer_.hasEmitters()) return Rgb::Zero();
+    const Vec3 from = x.point + tracer_.epsilon() * x.normal;
+    Rgb sum = Rgb::Zero();
+    for (int s = 0; s < samples; ++s) {
+        const EmitterSample e = tracer_.sampleEmitter(rng);
+        Vec3 w = e.point - x.point;
+        const double d2 = w.squaredNorm();
+        w /= std::sqrt(d2);
+        const double cosX = x.normal.dot(w), cosL = -e.normal.dot(w);
+        if (cosX <= 0 || cosL <= 0) continue;
+        if (!tracer_.visible(from, e.point + tracer_.epsilon() * e.normal)) continue;
+        sum += e.radiance * (cosX * cosL / (d2 * e.pdfArea));
+    }
+    return sum / samples;
+}
+
+Rgb FinalGather::indirectIrradiance(const SurfaceHit& x, Rng& rng, int rays, int level) const {
+    const Vec3 from = x.point + tracer_.epsilon() * x.normal;
+    Rgb sum = Rgb::Zero();
+    for (int r = 0; r < rays; ++r) {
+        Vec3 o = from, d = cosineDirection(x.normal, rng);
+        Rgb throughput = Rgb::Ones();
+        double length = 0;
+        for (int depth = 0; depth <= settings_.maxSpecularDepth; ++depth) {
+            const SurfaceHit y = tracer_.trace(o, d);
+            if (!y.found) break;
+            length += y.t;
+            if (y.material->type == MaterialType::Diffuse) {
+                if (!y.frontFacing(d)) break;
+                if (level == 0 && length < settings_.closeFactor * tracer_.patches().radius[size_t(y.patch)]) {
+                    // Too close for patch-level radiosity: shade the landing point itself.
+                    sum += throughput * reflected(y, rng, level + 1);
+                } else {
+                    const Rgb B = radiosityAt(y) - kPi * y.material->emission;
+                    sum += throughput * B.max(0.0) * kInvPi;
+                }
+                break;
+            }
+            // Through mirrors and glass, one branch at a time in proportion to its share.
+            SpecularBranch branches[2];
+            const int count = specularBranches(y, d, branches);
+            if (count == 0) break;
+            const SpecularBranch& b = count == 1 || rng.uniform() < branches[0].probability ? branches[0] : branches[1];
+            throughput *= b.weight / b.probability;
+            if (throughput.maxCoeff() < settings_.minThroughput) break;
+            d = b.dir;
+            o = tracer_.offset(y, d);
+        }
+    }
+    // Cosine sampling: E = pi * mean(L_in).
+    return kPi * sum / rays;
+}
+
+Image renderFinalGather(const FinalGather& gather, const Camera& camera, int samplesPerPixel, uint64_t seed) {
+    return renderPixels(camera, samplesPerPixel, seed, "final gather",
+                        [&](const Vec3& o, const Vec3& d, Rng& rng) { return gather.radiance(o, d, rng); });
+}
+
+Image renderSolvedScene(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity,
+                        const Camera& camera, int samplesPerPixel, uint64_t seed, const GatherSettings& settings,
+                        PhotonSettings photons) {
+    const auto corners = interpolateCorners(patches, radiosity);
+    const SceneTracer tracer(scene, patches);
+    std::unique_ptr<PhotonMap> caustics;
+    if (tracer.hasSpecular()) {
+        photons.seed = seed;
+        caustics = std::make_unique<PhotonMap>(tracer, photons);
+    } else {
+        logInfo("no mirrors or glass in the scene: no photon pass, no specular paths");
+    }
+    const FinalGather gather(tracer, corners, caustics.get(), settings);
+    return renderFinalGather(gather, camera, samplesPerPixel, seed);
+}
+
+}  // namespace penumbra

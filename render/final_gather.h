@@ -1,0 +1,65 @@
+// The final-gather view of a solved scene: the picture a user looks at. At every diffuse point the
+// camera sees (through any chain of mirrors and glass, split Whitted-style), the reflected radiance
+// is rho / pi times the sum of three irradiances that never count a light path twice:
+//   direct    light paths E -> x, by area sampling of the emitters with shadow rays;
+//   caustic   paths E -> (mirror|glass)+ -> x, from the photon map;
+//   indirect  paths that last left a diffuse surface y, by cosine gather rays that read y's solved
+//             radiosity minus its emission (through mirrors and glass, if they meet any).
+// Gather rays that land within a few patch radii of their origin, where patch-level radiosity is
+// too coarse (corners, contact shadows), shade their landing point one bounce deeper instead.
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include "core/rng.h"
+#include "render/film.h"
+#include "render/photon_map.h"
+#include "solver/tracer.h"
+
+namespace penumbra {
+
+struct GatherSettings {
+    int directSamples = 1;        // emitter samples per shading point and camera sample
+    int gatherRays = 16;          // gather rays per shading point and camera sample
+    int maxSpecularDepth = 16;    // mirror and glass bounces before a path stops
+    double minThroughput = 1e-3;  // specular branches carrying less are dropped
+    double closeFactor = 2;       // gather hits nearer than this many patch radii are shaded deeper
+};
+
+class FinalGather {
+public:
+    // `cornerRadiosity`: the solved radiosity B per patch corner (see interpolateCorners);
+    // `caustics` may be null when the scene has no mirrors or glass.
+    FinalGather(const SceneTracer& tracer, const std::vector<std::array<Rgb, 4>>& cornerRadiosity,
+                const PhotonMap* caustics, const GatherSettings& settings);
+
+    // Radiance arriving along a camera ray.
+    Rgb radiance(const Vec3& origin, const Vec3& dir, Rng& rng) const { return trace(origin, dir, rng, 0); }
+
+    // Light reflected by the diffuse front face at `x` (emission excluded), W sr^-1 m^-2; `level`
+    // 0 for points the camera sees, 1 for the close landings of their gather rays.
+    Rgb reflected(const SurfaceHit& x, Rng& rng, int level) const;
+    // The solved radiosity at a diffuse hit, interpolated between the patch corners, W/m^2.
+    Rgb radiosityAt(const SurfaceHit& y) const;
+
+private:
+    Rgb trace(const Vec3& origin, const Vec3& dir, Rng& rng, int depth) const;
+    Rgb directIrradiance(const SurfaceHit& x, Rng& rng, int samples) const;
+    Rgb indirectIrradiance(const SurfaceHit& x, Rng& rng, int rays, int level) const;
+
+    const SceneTracer& tracer_;
+    const std::vector<std::array<Rgb, 4>>& corners_;
+    const PhotonMap* caustics_;
+    GatherSettings settings_;
+};
+
+Image renderFinalGather(const FinalGather& gather, const Camera& camera, int samplesPerPixel, uint64_t seed);
+
+// The whole final-gather render of a solved scene: the ray scene, the photon pass if (and only if)
+// the scene has mirrors or glass, then the image. `radiosity` is B per patch of `patches`.
+Image renderSolvedScene(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity,
+                        const Camera& camera, int samplesPerPixel, uint64_t seed, const GatherSettings& gather,
+                        PhotonSettings photons);
+
+}  // namespace penumbra

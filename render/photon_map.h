@@ -1,0 +1,52 @@
+// The caustic photon map (Jensen 1996): photons leave the emitters in proportion to their power,
+// follow mirrors and glass, and are stored where they first land on a diffuse front face after at
+// least one specular bounce. Paths without a specular bounce are the radiosity solution's, so they
+// are not stored. A kd-tree (nanoflann) answers k-nearest queries for the density estimate.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "core/math.h"
+#include "solver/tracer.h"
+
+namespace penumbra {
+
+struct PhotonSettings {
+    int64_t photons = 1000000;   // photons emitted
+    int nearest = 100;           // k of the k-nearest density estimate
+    double maxRadius = 0.02;     // largest gather radius, as a fraction of the scene's diagonal
+    int maxDepth = 64;           // specular bounces before a photon is dropped
+    uint64_t seed = 1;
+};
+
+struct PhotonStats {
+    int64_t emitted = 0, stored = 0;
+    Rgb emittedPower = Rgb::Zero();   // sum of the emitted photons' powers, W
+    Rgb storedPower = Rgb::Zero();    // sum of the stored photons' powers, W
+    double seconds = 0;
+};
+
+class PhotonMap {
+public:
+    // Traces the photons (in parallel, independent of the thread count) and builds the tree.
+    PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings);
+    ~PhotonMap();
+    PhotonMap(const PhotonMap&) = delete;
+    PhotonMap& operator=(const PhotonMap&) = delete;
+
+    // Caustic irradiance (W/m^2) at a point of a diffuse surface with unit normal n: the k nearest
+    // photons on surfaces facing the same way, cone-filtered (Jensen's k = 1.1).
+    Rgb irradiance(const Vec3& x, const Vec3& n) const;
+    const PhotonStats& stats() const { return stats_; }
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+    PhotonStats stats_;
+    int nearest_;
+    double maxRadius_;
+};
+
+}  // namespace penumbra

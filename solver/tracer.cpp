@@ -1,0 +1,148 @@
+#include "solver/tracer.h"
+
+#include <algorithm>
+
+#include "core/error.h"
+#include "core/optics.h"
+
+namespace penumbra {
+namespace {
+
+// A sphere object is traced exactly when it is a mirror or glass and its transform keeps it a
+// sphere (rotation and uniform scale); an ellipsoid keeps its facets.
+bool exactSphere(const Scene& scene, const SceneObject& o, RaySphere& out) {
+    if (o.type != ShapeType::Sphere || scene.materialOf(o).type == MaterialType::Diffuse) return false;
+    const Eigen::Matrix3d L = o.toWorld.linear();
+    const Eigen::Matrix3d G = L.transpose() * L;
+    const double s2 = G.trace() / 3;
+    if ((G - s2 * Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-9 * s2) return false;
+    out.center = o.toWorld * o.center;
+    out.radius = o.radius * std::sqrt(s2);
+    return true;
+}
+
+}  // namespace
+
+int specularBranches(const SurfaceHit& hit, const Vec3& dir, SpecularBranch out[2]) {
+    const Material& m = *hit.material;
+    const bool front = hit.frontFacing(dir);
+    if (m.type == MaterialType::Mirror) {
+        if (!front) return 0;
+        out[0] = {reflect(dir, hit.normal), m.reflectance, 1.0};
+        return 1;
+    }
+    // Glass: the front side faces air; inside a closed glass object rays meet the back sides.
+    const Vec3 n = front ? hit.normal : Vec3(-hit.normal);
+    const double etaFrom = front ? 1.0 : m.ior, etaTo = front ? m.ior : 1.0;
+    const double F = fresnelDielectric(-dir.dot(n), etaFrom, etaTo);
+    const std::optional<Vec3> t = refract(dir, n, etaFrom, etaTo);
+    if (!t || F >= 1) {
+        out[0] = {reflect(dir, n), Rgb::Ones(), 1.0};
+        return 1;
+    }
+    out[0] = {reflect(dir, n), Rgb::Constant(F), F};
+    // The tint applies once per passage through the glass: on the way in.
+    out[1] = {*t, (1 - F) * (front ? m.transmittance : Rgb::Ones()), 1 - F};
+    return 2;
+}
+
+Vec3 samplePatchPoint(const PatchSet& patches, size_t i, double u1, double u2, double u3) {
+    const auto& c = patches.corners[i];
+    Vec3 a = c[0], b = c[1], d = c[2];
+    if (!patches.isTriangle(i)) {
+        const double first = 0.5 * (c[1] - c[0]).cross(c[2] - c[0]).norm();
+        const double second = 0.5 * (c[2] - c[0]).cross(c[3] - c[0]).norm();
+        if (u3 * (first + second) >= first) {
+            b = c[2];
+            d = c[3];
+        }
+    }
+    const double r = std::sqrt(u1);
+    return (1 - r) * a + r * (1 - u2) * b + r * u2 * d;
+}
+
+SceneTracer::SceneTracer(const Scene& scene, const PatchSet& patches) : scene_(scene), patches_(patches) {
+    std::vector<int> objectSphere(scene.objects.size(), -1);
+    for (size_t o = 0; o < scene.objects.size(); ++o) {
+        hasSpecular_ = hasSpecular_ || scene.materialOf(scene.objects[o]).type != MaterialType::Diffuse;
+        RaySphere s;
+        if (exactSphere(scene, scene.objects[o], s)) {
+            objectSphere[o] = int(spheres_.size());
+            spheres_.push_back(s);
+            sphereObject_.push_back(int(o));
+        }
+    }
+    std::vector<char> skip(patches.size(), 0);
+    Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+    for (size_t i = 0; i < patches.size(); ++i) {
+        skip[i] = objectSphere[size_t(patches.object[i])] >= 0;
+        for (const Vec3& p : patches.corners[i]) {
+            lo = lo.cwiseMin(p);
+            hi = hi.cwiseMax(p);
+        }
+    }
+    // Offsets off surfaces: far above float rounding of the geometry, far below any feature.
+    epsilon_ = patches.size() ? 1e-6 * std::max((hi - lo).norm(), 1e-3) : 1e-6;
+    rays_ = std::make_unique<RayScene>(patches, spheres_, skip);
+
+    emitterPdf_.assign(patches.size(), 0);
+    double total = 0;
+    for (size_t i = 0; i < patches.size(); ++i) {
+        const Material& m = scene.materialOf(scene.objects[size_t(patches.object[i])]);
+        if (m.type != MaterialType::Diffuse || !m.emits()) continue;
+        emitterPatch_.push_back(int(i));
+        total += patches.area[i] * m.emission.sum();
+        emitterCdf_.push_back(total);
+        emittedPower_ += kPi * patches.area[i] * m.emission;
+    }
+    for (size_t k = 0; k < emitterPatch_.size(); ++k) {
+        const size_t i = size_t(emitterPatch_[k]);
+        emitterCdf_[k] /= total;
+        const double p = (emitterCdf_[k] - (k ? emitterCdf_[k - 1] : 0.0));
+        emitterPdf_[i] = p / patches.area[i];
+    }
+    if (!emitterCdf_.empty()) emitterCdf_.back() = 1;
+}
+
+SurfaceHit SceneTracer::trace(const Vec3& origin, const Vec3& dir, double tMin) const {
+    const Hit h = rays_->intersect(origin, dir, tMin);
+    SurfaceHit s;
+    if (!h.found()) return s;
+    s.found = true;
+    s.t = h.t;
+    s.point = origin + h.t * dir;
+    if (h.patch >= 0) {
+        s.patch = h.patch;
+        s.u = h.u;
+        s.v = h.v;
+        s.object = patches_.object[size_t(h.patch)];
+        s.normal = patches_.normal[size_t(h.patch)];
+    } else {
+        const RaySphere& sphere = spheres_[size_t(h.sphere)];
+        s.object = sphereObject_[size_t(h.sphere)];
+        s.normal = (s.point - sphere.center).normalized();
+        // Put the point back on the sphere: the float hit distance is off by ~1e-7 of the radius.
+        s.point = sphere.center + sphere.radius * s.normal;
+    }
+    s.material = &scene_.materialOf(scene_.objects[size_t(s.object)]);
+    return s;
+}
+
+bool SceneTracer::visible(const Vec3& a, const Vec3& b) const { return !rays_->occluded(a, b, 1e-7); }
+
+EmitterSample SceneTracer::sampleEmitter(Rng& rng) const {
+    PENUMBRA_CHECK(!emitterCdf_.empty());
+    const double u = rng.uniform();
+    const size_t k = size_t(std::lower_bound(emitterCdf_.begin(), emitterCdf_.end(), u) - emitterCdf_.begin());
+    const size_t i = size_t(emitterPatch_[std::min(k, emitterPatch_.size() - 1)]);
+    EmitterSample e;
+    const double u1 = rng.uniform(), u2 = rng.uniform();
+    e.point = samplePatchPoint(patches_, i, u1, u2, rng.uniform());
+    e.normal = patches_.normal[i];
+    e.radiance = scene_.materialOf(scene_.objects[size_t(patches_.object[i])]).emission;
+    e.pdfArea = emitterPdf_[i];
+    e.patch = int(i);
+    return e;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,95 @@
+// The scene as the ray tracers see it: the patches, with mirror and glass spheres as exact spheres
+// (their facets would show in reflections and scatter caustics), materials at every hit, and
+// sampling of the emitting surfaces by power. Shared by the specular transport of the solve, the
+// photon pass and both integrators, so all of them see one geometry.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "core/math.h"
+#include "core/rng.h"
+#include "mesh/patches.h"
+#include "mesh/scene.h"
+#include "solver/visibility.h"
+
+namespace penumbra {
+
+struct SurfaceHit {
+    bool found = false;
+    Vec3 point = Vec3::Zero();
+    Vec3 normal = Vec3::UnitZ();   // unit normal of the front side (outward on spheres)
+    double t = 0;
+    int patch = -1;                // patch hit; -1 on exact spheres
+    double u = 0, v = 0;           // Embree's coordinates on the patch
+    int object = -1;
+    const Material* material = nullptr;
+    // True if a ray travelling along `dir` arrived on the front side.
+    bool frontFacing(const Vec3& dir) const { return normal.dot(dir) < 0; }
+};
+
+struct EmitterSample {
+    Vec3 point, normal;     // on an emitting patch, its front normal
+    Rgb radiance;           // L_e
+    double pdfArea = 0;     // density of this point per m^2 over all emitters
+    int patch = -1;
+};
+
+class SceneTracer {
+public:
+    SceneTracer(const Scene& scene, const PatchSet& patches);
+
+    const Scene& scene() const { return scene_; }
+    const PatchSet& patches() const { return patches_; }
+
+    // Nearest surface along origin + t dir (dir unit), t > tMin.
+    SurfaceHit trace(const Vec3& origin, const Vec3& dir, double tMin = 0) const;
+    // Nothing between a and b (both already offset off their surfaces).
+    bool visible(const Vec3& a, const Vec3& b) const;
+    // A point just off the surface at `hit`, on the side that `dir` leaves towards.
+    Vec3 offset(const SurfaceHit& hit, const Vec3& dir) const {
+        return hit.point + (hit.normal.dot(dir) > 0 ? epsilon_ : -epsilon_) * hit.normal;
+    }
+    double epsilon() const { return epsilon_; }
+
+    bool hasEmitters() const { return !emitterCdf_.empty(); }
+    // True if some object is a mirror or glass.
+    bool hasSpecular() const { return hasSpecular_; }
+    // A point on the emitters, chosen in proportion to emitted power (sum over channels).
+    EmitterSample sampleEmitter(Rng& rng) const;
+    // The density per m^2 with which sampleEmitter picks points on `patch` (0 if it does not emit).
+    double emitterPdfArea(int patch) const { return patch >= 0 ? emitterPdf_[size_t(patch)] : 0; }
+    // Power emitted by all surfaces, W per channel.
+    const Rgb& emittedPower() const { return emittedPower_; }
+    // Number of exact spheres standing in for mirror and glass sphere objects.
+    size_t exactSpheres() const { return sphereObject_.size(); }
+
+private:
+    const Scene& scene_;
+    const PatchSet& patches_;
+    std::unique_ptr<RayScene> rays_;
+    std::vector<RaySphere> spheres_;
+    std::vector<int> sphereObject_;
+    std::vector<int> emitterPatch_;
+    std::vector<double> emitterCdf_;      // cumulative, normalised
+    std::vector<double> emitterPdf_;      // per patch, per m^2
+    Rgb emittedPower_ = Rgb::Zero();
+    bool hasSpecular_ = false;
+    double epsilon_ = 1e-6;
+};
+
+// Where light arriving along `dir` at a mirror or glass hit goes: reflection and (glass) refraction
+// with their Fresnel-weighted tints. `probability` is the share to pick a branch with when
+// following one path; `weight` the factor of the light it carries. The back of a mirror absorbs.
+struct SpecularBranch {
+    Vec3 dir;
+    Rgb weight;
+    double probability = 0;
+};
+int specularBranches(const SurfaceHit& hit, const Vec3& dir, SpecularBranch out[2]);
+
+// A uniformly distributed point on a patch (the two triangles of a quad chosen by area).
+Vec3 samplePatchPoint(const PatchSet& patches, size_t patch, double u1, double u2, double u3);
+
+}  // namespace penumbra

@@ -1,0 +1,135 @@
+// Mirrors and glass: the optics against closed forms (Fresnel at normal incidence, Brewster's
+// angle, Snell's law, total internal reflection), and the specular transport of the solve against
+// the image method and the furnace (a lossless mirror or glass object leaves B = E / (1 - rho)).
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/optics.h"
+#include "fixtures.h"
+
+using namespace penumbra;
+
+TEST(Optics, FresnelAtNormalIncidenceIsTheSquaredIndexRatio) {
+    for (double n : {1.33, 1.5, 2.42}) {
+        const double expected = std::pow((n - 1) / (n + 1), 2);
+        EXPECT_NEAR(fresnelDielectric(1, 1, n), expected, 1e-12) << n;
+        EXPECT_NEAR(fresnelDielectric(1, n, 1), expected, 1e-12) << n;   // the same from inside
+    }
+}
+
+TEST(Optics, BrewsterAngleReflectsOnlyTheSPolarisation) {
+    const double n = 1.5, theta = std::atan(n);
+    const double cosT = std::cos(std::asin(std::sin(theta) / n));
+    const double rs = (std::cos(theta) - n * cosT) / (std::cos(theta) + n * cosT);
+    EXPECT_NEAR(fresnelDielectric(std::cos(theta), 1, n), 0.5 * rs * rs, 1e-12);
+}
+
+TEST(Optics, SnellsLawAndTotalInternalReflection) {
+    const double n = 1.5, critical = std::asin(1 / n);
+    const Vec3 normal(0, 0, 1);
+    for (double theta : {0.1, 0.5, critical - 1e-3}) {
+        // From inside the glass (normal facing the incoming side) out into air.
+        const Vec3 d(std::sin(theta), 0, -std::cos(theta));
+        const auto t = refract(d, normal, n, 1);
+        ASSERT_TRUE(t.has_value()) << theta;
+        EXPECT_NEAR(n * std::sin(theta), std::sqrt(1 - t->z() * t->z()), 1e-9) << theta;
+        EXPECT_LT(fresnelDielectric(std::cos(theta), n, 1), 1.0);
+    }
+    for (double theta : {critical + 1e-3, 1.0, 1.5}) {
+        const Vec3 d(std::sin(theta), 0, -std::cos(theta));
+        EXPECT_FALSE(refract(d, normal, n, 1).has_value()) << theta;
+        EXPECT_EQ(fresnelDielectric(std::cos(theta), n, 1), 1.0) << theta;
+    }
+}
+
+TEST(Optics, CosineDirectionsHaveTheLambertianMean) {
+    // E[cos theta] = 2/3 for a cosine-distributed direction.
+    Rng rng(7);
+    const Vec3 n = Vec3(1, 2, 3).normalized();
+    double sum = 0;
+    const int count = 200000;
+    for (int i = 0; i < count; ++i) sum += cosineDirection(n, rng).dot(n);
+    EXPECT_NEAR(sum / count, 2.0 / 3.0, 3e-3);
+}
+
+namespace {
+
+// The unit cube of closedCube() with one face replaced by `top` (material "spec") and an optional
+// extra object, all diffuse faces emitting L_e = 1 with reflectance rho.
+std::string furnaceWith(double rho, const std::string& spec, const std::string& extra, bool mirrorTop) {
+    const std::string diffuse = cat(R"({"type": "diffuse", "reflectance": )", rho, R"(, "emission": 1})");
+    return cat(R"({"materials": {"m": )", diffuse, R"(, "spec": )", spec, R"(},
+      "objects": [
+        {"name": "bottom", "type": "quad", "material": "m", "vertices": [[0,0,0],[0,0,1],[1,0,1],[1,0,0]]},
+        {"name": "top",    "type": "quad", "material": ")", mirrorTop ? "spec" : "m", R"(", "vertices": [[0,1,0],[1,1,0],[1,1,1],[0,1,1]]},
+        {"name": "left",   "type": "quad", "material": "m", "vertices": [[0,0,0],[0,1,0],[0,1,1],[0,0,1]]},
+        {"name": "right",  "type": "quad", "material": "m", "vertices": [[1,0,0],[1,0,1],[1,1,1],[1,1,0]]},
+        {"name": "back",   "type": "quad", "material": "m", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]},
+        {"name": "front",  "type": "quad", "material": "m", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]})",
+               extra, "]}");
+}
+
+SolveResult solveWithRays(const std::string& json, int patches, int specularRays) {
+    SolveOptions o;
+    o.meshing.targetPatches = patches;
+    o.solverSettings.tolerance = 1e-7;
+    o.specular.raysPerPatch = specularRays;
+    return solveScene(test::sceneFromJson(json), o);
+}
+
+void expectFurnace(const SolveResult& r, double rho, double tolerance) {
+    const double expected = kPi / (1 - rho);
+    double worst = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        if (r.system.specular[i]) continue;
+        worst = std::max(worst, std::abs(r.solution.B[i][0] / expected - 1));
+    }
+    EXPECT_LT(worst, tolerance) << "worst relative deviation from E / (1 - rho)";
+}
+
+}  // namespace
+
+TEST(SpecularTransport, PerfectMirrorWallKeepsTheFurnaceUniform) {
+    // A lossless mirror wall makes the cube look like a closed box twice as long, by the image
+    // method: still a furnace, so every diffuse patch has B = E / (1 - rho).
+    const double rho = 0.8;
+    const SolveResult r = solveWithRays(furnaceWith(rho, R"({"type": "mirror", "reflectance": 1})", "", true), 150, 16384);
+    ASSERT_FALSE(r.system.transport.empty());
+    expectFurnace(r, rho, 0.01);
+    EXPECT_LT(r.power.escaped.abs().maxCoeff(), 1e-3 * r.power.totalEmitted[0]);
+}
+
+TEST(SpecularTransport, LosslessGlassSphereKeepsTheFurnaceUniform) {
+    const double rho = 0.5;
+    const SolveResult r = solveWithRays(
+        furnaceWith(rho, R"({"type": "dielectric", "ior": 1.5})",
+                    R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [0.5, 0.5, 0.5], "radius": 0.25})",
+                    false),
+        200, 16384);
+    expectFurnace(r, rho, 0.01);
+    Rgb glassAbsorbed = Rgb::Zero();
+    for (size_t i = 0; i < r.patches.size(); ++i)
+        if (r.patches.object[i] == 6) glassAbsorbed += r.power.absorbed[i];
+    EXPECT_LT(glassAbsorbed[0], 2e-3 * r.power.totalEmitted[0]) << "lossless glass absorbs only unresolved shares";
+}
+
+TEST(SpecularTransport, MirrorReturnsTheLampsImage) {
+    // A black lamp (unit square, L_e = 1) under a mirror square at distance 1, reflectance R: the
+    // lamp's own light returns to it as from its mirror image at distance 2, R F(1, 1, 2) of it,
+    // and the mirror absorbs (1 - R) F(1, 1, 1) (Howell C-11 for both).
+    const double R = 0.8;
+    const std::string json = cat(R"({"materials": {"lamp": {"type": "diffuse", "reflectance": 0, "emission": 1},
+          "chrome": {"type": "mirror", "reflectance": )", R, R"(}},
+      "objects": [
+        {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]},
+        {"name": "mirror", "type": "quad", "material": "chrome", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]}]})");
+    const SolveResult r = solveWithRays(json, 200, 1024);
+    Rgb lamp = Rgb::Zero(), mirror = Rgb::Zero();
+    for (size_t i = 0; i < r.patches.size(); ++i) (r.patches.object[i] == 0 ? lamp : mirror) += r.power.absorbed[i];
+    const double emitted = kPi;
+    EXPECT_NEAR(lamp[0] / emitted, R * test::parallelRectangles(1, 1, 2), 0.01 * R * test::parallelRectangles(1, 1, 2));
+    EXPECT_NEAR(mirror[0] / emitted, (1 - R) * test::parallelRectangles(1, 1, 1),
+                0.005 * (1 - R) * test::parallelRectangles(1, 1, 1));
+    EXPECT_NEAR(r.power.totalAbsorbed[0] + r.power.escaped[0], r.power.totalEmitted[0], 1e-9 * emitted);
+}
