@@ -213,6 +213,9 @@ int main(int argc, char** argv) {
         ->capture_default_str()->check(CLI::Range(1, 4096));
     renderCmd->add_option("--gather-rays", render.gather.gatherRays, "Final gather: gather rays per camera sample")
         ->capture_default_str()->check(CLI::Range(1, 65536));
+    renderCmd->add_option("--close-factor", render.gather.closeFactor,
+                          "Final gather: hits nearer than this many patch radii are shaded one bounce deeper")
+        ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
     renderCmd->add_option("--photons", render.photons.photons, "Caustic photons emitted")
         ->capture_default_str()->check(CLI::Range(int64_t(1), int64_t(1) << 34));
     renderCmd->add_option("--photon-k", render.photons.nearest, "Photons per caustic density estimate")

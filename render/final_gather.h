@@ -24,7 +24,7 @@ struct GatherSettings {
     int gatherRays = 16;          // gather rays per shading point and camera sample
     int maxSpecularDepth = 16;    // mirror and glass bounces before a path stops
     double minThroughput = 1e-3;  // specular branches carrying less are dropped
-    double closeFactor = 2;       // gather hits nearer than this many patch radii are shaded deeper
+    double closeFactor = 8;       // gather hits nearer than this many patch radii are shaded deeper
 };
 
 class FinalGather {

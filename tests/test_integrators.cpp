@@ -1,0 +1,169 @@
+// Both integrators against closed forms: the furnace (radiance E / (1 - rho) / pi, also with a
+// perfect mirror wall, which keeps it a furnace), a glass slab that transmits (1 - R) / (1 + R) at
+// normal incidence, the photons' total power, the two rooms (no light through the shared wall),
+// and determinism (the same bits whatever the thread count; another seed changes only noise).
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/optics.h"
+#include "core/parallel.h"
+#include "fixtures.h"
+#include "render/final_gather.h"
+#include "render/image_metrics.h"
+#include "render/path_tracer.h"
+#include "render/photon_map.h"
+
+using namespace penumbra;
+
+namespace {
+
+// The unit cube (all diffuse, emitting L_e = 1) seen from its centre; `top` may be a mirror.
+std::string furnace(double rho, bool mirrorTop) {
+    const std::string m = cat(R"({"type": "diffuse", "reflectance": )", rho, R"(, "emission": 1})");
+    return cat(R"({"materials": {"m": )", m, R"(, "chrome": {"type": "mirror", "reflectance": 1}},
+      "objects": [
+        {"name": "bottom", "type": "quad", "material": "m", "vertices": [[0,0,0],[0,0,1],[1,0,1],[1,0,0]]},
+        {"name": "top",    "type": "quad", "material": ")", mirrorTop ? "chrome" : "m", R"(", "vertices": [[0,1,0],[1,1,0],[1,1,1],[0,1,1]]},
+        {"name": "left",   "type": "quad", "material": "m", "vertices": [[0,0,0],[0,1,0],[0,1,1],[0,0,1]]},
+        {"name": "right",  "type": "quad", "material": "m", "vertices": [[1,0,0],[1,0,1],[1,1,1],[1,1,0]]},
+        {"name": "back",   "type": "quad", "material": "m", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]},
+        {"name": "front",  "type": "quad", "material": "m", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}],
+      "camera": {"position": [0.5, 0.3, 0.2], "look_at": [0.5, 0.8, 1], "up": [0, 1, 0], "fov_y_deg": 90,
+                 "resolution": [16, 16]}})");
+}
+
+// A 2 x 2 x 0.1 glass slab in front of a black lamp of radiance 1 filling the view.
+std::string glassSlab(double ior) {
+    return cat(R"({"materials": {"glass": {"type": "dielectric", "ior": )", ior, R"(},
+                   "lamp": {"type": "diffuse", "reflectance": 0, "emission": 1}},
+      "objects": [
+        {"name": "near", "type": "quad", "material": "glass", "vertices": [[-1,-1,0],[-1,1,0],[1,1,0],[1,-1,0]]},
+        {"name": "far",  "type": "quad", "material": "glass", "vertices": [[-1,-1,0.1],[1,-1,0.1],[1,1,0.1],[-1,1,0.1]]},
+        {"name": "xlo",  "type": "quad", "material": "glass", "vertices": [[-1,-1,0],[-1,-1,0.1],[-1,1,0.1],[-1,1,0]]},
+        {"name": "xhi",  "type": "quad", "material": "glass", "vertices": [[1,-1,0],[1,1,0],[1,1,0.1],[1,-1,0.1]]},
+        {"name": "ylo",  "type": "quad", "material": "glass", "vertices": [[-1,-1,0],[1,-1,0],[1,-1,0.1],[-1,-1,0.1]]},
+        {"name": "yhi",  "type": "quad", "material": "glass", "vertices": [[-1,1,0],[-1,1,0.1],[1,1,0.1],[1,1,0]]},
+        {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[-5,-5,1],[-5,5,1],[5,5,1],[5,-5,1]]}],
+      "camera": {"position": [0, 0, -1], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov_y_deg": 2, "resolution": [8, 8]}})");
+}
+
+Rgb imageMean(const Image& image) { return meanOver(image, 0, 0, image.width, image.height); }
+
+Image pathImage(const std::string& json, int spp, uint64_t seed = 1) {
+    const Scene scene = test::sceneFromJson(json);
+    const PatchSet patches = meshScene(scene, {});
+    const SceneTracer tracer(scene, patches);
+    return renderPath(tracer, scene.camera, spp, seed);
+}
+
+Image gatherImage(const std::string& json, int patches, int spp, uint64_t seed = 1, const Camera* camera = nullptr) {
+    const Scene scene = test::sceneFromJson(json);
+    const SolveResult r = test::solve(json, patches);
+    return renderSolvedScene(scene, r.patches, r.solution.display, camera ? *camera : scene.camera, spp, seed, {}, {});
+}
+
+}  // namespace
+
+TEST(PathTracer, FurnaceRadianceIsEOverOneMinusRho) {
+    for (double rho : {0.5, 0.9}) {
+        const Rgb mean = imageMean(pathImage(furnace(rho, false), 1024));
+        EXPECT_NEAR(mean[0], 1 / (1 - rho), 0.01 / (1 - rho)) << "rho " << rho;
+    }
+}
+
+TEST(PathTracer, PerfectMirrorWallKeepsTheFurnace) {
+    const Image image = pathImage(furnace(0.5, true), 64);
+    EXPECT_NEAR(imageMean(image)[0], 2.0, 0.02);
+    // The upper rows look into the mirror: they see the furnace too.
+    EXPECT_NEAR(meanOver(image, 0, 0, 16, 4)[0], 2.0, 0.04);
+}
+
+TEST(FinalGather, FurnaceRadianceIsEOverOneMinusRho) {
+    for (bool mirror : {false, true}) {
+        const Rgb mean = imageMean(gatherImage(furnace(0.5, mirror), 150, 16));
+        EXPECT_NEAR(mean[0], 2.0, 0.02) << (mirror ? "with a mirror wall" : "all diffuse");
+    }
+}
+
+TEST(GlassSlab, TransmitsWhatFresnelSays) {
+    // Normal incidence, all internal reflections summed: T = (1 - R)^2 / (1 - R^2) = (1 - R) / (1 + R).
+    for (double ior : {1.5, 2.4}) {
+        const double R = fresnelDielectric(1, 1, ior), T = (1 - R) / (1 + R);
+        EXPECT_NEAR(imageMean(pathImage(glassSlab(ior), 256))[0], T, 0.005 * T) << "path, ior " << ior;
+        EXPECT_NEAR(imageMean(gatherImage(glassSlab(ior), 100, 4))[0], T, 1e-3 * T) << "final gather, ior " << ior;
+    }
+}
+
+TEST(Photons, TotalPowerEqualsTheEmittersPower) {
+    // Two lamps of different colours and sizes, a glass ball between them and the floor.
+    const std::string json = R"({"materials": {
+          "warm": {"type": "diffuse", "reflectance": 0.5, "emission": [4, 2, 1]},
+          "cold": {"type": "diffuse", "reflectance": 0.5, "emission": [0.5, 1, 3]},
+          "white": {"type": "diffuse", "reflectance": 0.7},
+          "glass": {"type": "dielectric", "ior": 1.5}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "white", "vertices": [[-2,0,-2],[-2,0,2],[2,0,2],[2,0,-2]]},
+        {"name": "warm", "type": "quad", "material": "warm", "vertices": [[-1,2,-1],[1,2,-1],[1,2,0],[-1,2,0]]},
+        {"name": "cold", "type": "quad", "material": "cold", "vertices": [[-0.5,2,0.5],[0.5,2,0.5],[0.5,2,1],[-0.5,2,1]]},
+        {"name": "ball", "type": "sphere", "material": "glass", "center": [0, 0.7, 0], "radius": 0.5}]})";
+    const Scene scene = test::sceneFromJson(json);
+    const PatchSet patches = meshScene(scene, {});
+    const SceneTracer tracer(scene, patches);
+    PhotonSettings settings;
+    settings.photons = 200000;
+    const PhotonMap map(tracer, settings);
+    const Rgb expected = tracer.emittedPower();
+    // pi L_e A per lamp: the tracer's sum is the closed form.
+    EXPECT_NEAR(expected[0], kPi * (4 * 2 + 0.5 * 0.5), 1e-9);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(map.stats().emittedPower[c], expected[c], 0.01 * expected[c]) << c;
+    EXPECT_GT(map.stats().stored, 1000);
+    EXPECT_LT(map.stats().storedPower.sum(), map.stats().emittedPower.sum());
+}
+
+TEST(Photons, OneLampsPhotonsCarryExactlyItsPower) {
+    const std::string json = R"({"materials": {"lamp": {"type": "diffuse", "reflectance": 0.5, "emission": [3, 2, 1]},
+          "chrome": {"type": "mirror", "reflectance": 0.9}},
+      "objects": [
+        {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]},
+        {"name": "mirror", "type": "quad", "material": "chrome", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]}]})";
+    const Scene scene = test::sceneFromJson(json);
+    const PatchSet patches = meshScene(scene, {});
+    const SceneTracer tracer(scene, patches);
+    PhotonSettings settings;
+    settings.photons = 10000;
+    const PhotonMap map(tracer, settings);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(map.stats().emittedPower[c], kPi * (3 - c), 1e-9) << c;
+}
+
+TEST(FinalGather, DarkRoomBehindASharedWallStaysBlack) {
+    const Image image = gatherImage(test::sceneFile("two-rooms.json"), 600, 4, 1);
+    double maxValue = 0;
+    for (float v : image.rgb) maxValue = std::max(maxValue, double(v));
+    EXPECT_EQ(maxValue, 0.0);
+}
+
+TEST(Determinism, RendersDoNotDependOnTheThreadCountAndSeedsChangeOnlyNoise) {
+    const std::string json = test::sceneFile("cornell-glass.json");
+    const Scene scene = test::sceneFromJson(json);
+    Camera camera = scene.camera;
+    camera.width = camera.height = 24;
+    const PatchSet patches = meshScene(scene, {});
+    const SceneTracer tracer(scene, patches);
+    const std::vector<Rgb> flat(patches.size(), Rgb::Constant(1.0));
+    PhotonSettings photons;
+    photons.photons = 20000;
+    setThreadCount(1);
+    const Image path1 = renderPath(tracer, camera, 16, 1);
+    const Image gather1 = renderSolvedScene(scene, patches, flat, camera, 4, 1, {}, photons);
+    setThreadCount(2);
+    const Image path2 = renderPath(tracer, camera, 16, 1);
+    const Image gather2 = renderSolvedScene(scene, patches, flat, camera, 4, 1, {}, photons);
+    setThreadCount(0);
+    EXPECT_EQ(path1.rgb, path2.rgb);
+    EXPECT_EQ(gather1.rgb, gather2.rgb);
+    const Image path3 = renderPath(tracer, camera, 16, 2);
+    EXPECT_NE(path1.rgb, path3.rgb);
+    // Another seed: the same picture up to noise (its mean within a few percent).
+    EXPECT_NEAR(compareImages(path3, path1).meanRatio, 1.0, 0.05);
+}

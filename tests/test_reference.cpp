@@ -1,0 +1,266 @@
+// The final-gather view against the project's unbiased path tracer on the same scene, camera and
+// geometry (suites named *Slow: they run in the Release build, not under the sanitizers):
+//   Cornell box: mean relative error after a 5x5 box blur under 3%, per-wall mean radiance within
+//   3%, and the same 3% along the blocks' contact with the floor (no leaks, no blotches);
+//   cornell-glass: the caustic under the glass ball, its power against a backward (eye-side)
+//   estimate of the same light paths, and the mirror ball showing the room as the path tracer does.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+
+#include "core/optics.h"
+#include "fixtures.h"
+#include "render/camera.h"
+#include "render/final_gather.h"
+#include "render/image_metrics.h"
+#include "render/path_tracer.h"
+#include "render/photon_map.h"
+
+using namespace penumbra;
+
+namespace {
+
+struct Pair {
+    Scene scene;
+    Camera camera;
+    SolveResult solved;
+    Image gather, path;
+    std::unique_ptr<SceneTracer> tracer;   // over the solved patches, for pixel labels
+};
+
+// Solves the scene, renders it both ways at `size` x `size`.
+std::unique_ptr<Pair> renderBoth(const std::string& file, int size, int gatherSpp, int pathSpp) {
+    auto p = std::make_unique<Pair>();
+    const std::string json = test::sceneFile(file);
+    p->scene = test::sceneFromJson(json, file);
+    p->camera = p->scene.camera;
+    p->camera.width = p->camera.height = size;
+    SolveOptions options;
+    p->solved = solveScene(p->scene, options);
+    p->gather = renderSolvedScene(p->scene, p->solved.patches, p->solved.solution.display, p->camera, gatherSpp, 1, {}, {});
+    p->tracer = std::make_unique<SceneTracer>(p->scene, p->solved.patches);
+    p->path = renderPath(*p->tracer, p->camera, pathSpp, 7);
+    return p;
+}
+
+// The surface seen through each pixel's centre.
+std::vector<SurfaceHit> pixelHits(const Pair& p) {
+    const PinholeCamera cam(p.camera);
+    std::vector<SurfaceHit> hits;
+    for (int y = 0; y < p.camera.height; ++y)
+        for (int x = 0; x < p.camera.width; ++x) hits.push_back(p.tracer->trace(cam.origin(), cam.direction(x + 0.5, y + 0.5)));
+    return hits;
+}
+
+// Mean relative error (the compareImages measure) over the pixels where `keep` is true.
+double maskedRelativeError(const Image& a, const Image& ref, const std::vector<char>& keep) {
+    double refSum = 0;
+    for (float v : ref.rgb) refSum += v;
+    const double floor = 0.01 * refSum / double(ref.rgb.size());
+    double rel = 0;
+    size_t count = 0;
+    for (size_t k = 0; k < keep.size(); ++k) {
+        if (!keep[k]) continue;
+        for (size_t c = 0; c < 3; ++c) rel += std::abs(a.rgb[3 * k + c] - ref.rgb[3 * k + c]) / (ref.rgb[3 * k + c] + floor);
+        count += 3;
+    }
+    return count ? rel / double(count) : 0;
+}
+
+double segmentDistance(const Vec3& p, const Vec3& a, const Vec3& b) {
+    const Vec3 ab = b - a;
+    const double t = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+    return (p - (a + t * ab)).norm();
+}
+
+}  // namespace
+
+TEST(ReferenceSlow, CornellBoxFinalGatherMatchesThePathTracer) {
+    const auto p = renderBoth("cornell-box.json", 64, 64, 4096);
+    const ImageError e = compareBlurred(p->gather, p->path);
+    std::printf("cornell-box 64x64: blurred mean relative error %.4f, brightness ratio %.4f\n", e.meanRelative, e.meanRatio);
+    EXPECT_LT(e.meanRelative, 0.03);
+
+    // Per wall: pixels whose 3 x 3 neighbourhood all sees the same object.
+    const std::vector<SurfaceHit> hits = pixelHits(*p);
+    const int w = p->camera.width, h = p->camera.height;
+    std::map<int, std::pair<Rgb, Rgb>> sums;
+    for (int y = 1; y + 1 < h; ++y)
+        for (int x = 1; x + 1 < w; ++x) {
+            const int o = hits[size_t(y * w + x)].object;
+            bool interior = o >= 0;
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) interior = interior && hits[size_t((y + dy) * w + x + dx)].object == o;
+            if (!interior) continue;
+            auto [it, fresh] = sums.emplace(o, std::make_pair(Rgb(Rgb::Zero()), Rgb(Rgb::Zero())));
+            it->second.first += p->gather.at(x, y);
+            it->second.second += p->path.at(x, y);
+        }
+    for (const auto& [o, s] : sums) {
+        const double g = s.first.sum(), r = s.second.sum();
+        EXPECT_NEAR(g / r, 1.0, 0.03) << p->scene.objects[size_t(o)].name;
+        std::printf("  %s: final gather / path %.4f\n", p->scene.objects[size_t(o)].name.c_str(), g / r);
+    }
+
+    // Along the blocks' contact with the floor: floor points within 30 mm of a block's base, and
+    // block faces below 30 mm, compared after the same blur.
+    std::vector<std::pair<Vec3, Vec3>> bases;
+    for (const SceneObject& o : p->scene.objects) {
+        if (o.name.find("block") == std::string::npos || o.vertices.size() != 4) continue;
+        std::vector<Vec3> low;
+        for (const Vec3& v : o.vertices)
+            if (std::abs(v.y()) < 1e-9) low.push_back(v);
+        if (low.size() == 2) bases.emplace_back(low[0], low[1]);
+    }
+    ASSERT_EQ(bases.size(), 8u);
+    std::vector<char> contact(hits.size(), 0);
+    int count = 0;
+    for (size_t k = 0; k < hits.size(); ++k) {
+        if (!hits[k].found) continue;
+        const std::string& name = p->scene.objects[size_t(hits[k].object)].name;
+        double d = 1e9;
+        for (const auto& [a, b] : bases) d = std::min(d, segmentDistance(hits[k].point, a, b));
+        contact[k] = (name == "floor" || name.find("block") != std::string::npos) && d < 0.03 && hits[k].point.y() < 0.03;
+        count += contact[k];
+    }
+    ASSERT_GT(count, 50);
+    const double contactError = maskedRelativeError(boxBlur(p->gather, 2), boxBlur(p->path, 2), contact);
+    Rgb cg = Rgb::Zero(), cp = Rgb::Zero();
+    for (size_t k = 0; k < contact.size(); ++k)
+        if (contact[k]) {
+            cg += p->gather.at(int(k) % w, int(k) / w);
+            cp += p->path.at(int(k) % w, int(k) / w);
+        }
+    std::printf("contact region (%d pixels): blurred mean relative error %.4f, brightness ratio %.4f\n", count,
+                contactError, cg.sum() / cp.sum());
+    EXPECT_LT(contactError, 0.03);
+}
+
+TEST(ReferenceSlow, CornellGlassCausticAndMirrorBall) {
+    const auto p = renderBoth("cornell-glass.json", 96, 64, 4096);
+    const ImageError e = compareBlurred(p->gather, p->path);
+    std::printf("cornell-glass 96x96: blurred mean relative error %.4f, brightness ratio %.4f\n", e.meanRelative,
+                e.meanRatio);
+    EXPECT_LT(e.meanRelative, 0.05);
+
+    // The mirror ball: the ring between half and 0.85 of its image radius (its centre reflects the
+    // open front, which is black) shows the room as the path tracer sees it.
+    const SceneObject* ball = nullptr;
+    const SceneObject* glass = nullptr;
+    for (const SceneObject& o : p->scene.objects) {
+        if (o.name == "mirror_ball") ball = &o;
+        if (o.name == "glass_ball") glass = &o;
+    }
+    ASSERT_TRUE(ball && glass);
+    const PinholeCamera cam(p->camera);
+    const Vec3 centre = ball->toWorld * ball->center;
+    const double radius = ball->radius * p->scene.unitScale;
+    std::vector<char> ring(size_t(p->camera.width * p->camera.height), 0);
+    for (int y = 0; y < p->camera.height; ++y)
+        for (int x = 0; x < p->camera.width; ++x) {
+            const Vec3 d = cam.direction(x + 0.5, y + 0.5);
+            const Vec3 oc = centre - cam.origin();
+            const double along = oc.dot(d), off = std::sqrt(std::max(0.0, oc.squaredNorm() - along * along));
+            ring[size_t(y * p->camera.width + x)] = off > 0.5 * radius && off < 0.85 * radius;
+        }
+    Rgb g = Rgb::Zero(), r = Rgb::Zero();
+    for (size_t k = 0; k < ring.size(); ++k)
+        if (ring[k]) {
+            g += p->gather.at(int(k) % p->camera.width, int(k) / p->camera.width);
+            r += p->path.at(int(k) % p->camera.width, int(k) / p->camera.width);
+        }
+    EXPECT_NEAR(g.sum() / r.sum(), 1.0, 0.05) << "mirror ball";
+    EXPECT_GT(g.sum(), 0.2 * meanOver(p->gather, 0, 0, p->camera.width, p->camera.height).sum() * double(
+                                   std::count(ring.begin(), ring.end(), 1)))
+        << "the mirror ball reflects the room";
+
+    // The caustic on the floor under the glass ball. Photon map (light side) against a backward
+    // estimate of the same paths (floor -> glass -> lamp) on a grid of floor points, in W.
+    const PhotonMap photons(*p->tracer, {});
+    const Vec3 g0 = glass->toWorld * glass->center;
+    const double R = glass->radius * p->scene.unitScale, cell = 0.01;
+    // The lamp, as a grid of small squares: its light on the ball and on the bare floor.
+    const SceneObject* lamp = nullptr;
+    for (const SceneObject& o : p->scene.objects)
+        if (o.name == "light") lamp = &o;
+    ASSERT_TRUE(lamp);
+    const Rgb Le = p->scene.materialOf(*lamp).emission;
+    const Vec3 l0 = lamp->vertices[0], lu = lamp->vertices[1] - l0, lv = lamp->vertices[3] - l0;
+    const Vec3 ln = lu.cross(lv).normalized();
+    const int lampGrid = 40;
+    const double dA = lu.cross(lv).norm() / (lampGrid * lampGrid);
+    auto overLamp = [&](const auto& f) {
+        double sum = 0;
+        for (int a = 0; a < lampGrid; ++a)
+            for (int b = 0; b < lampGrid; ++b) sum += f(l0 + (a + 0.5) / lampGrid * lu + (b + 0.5) / lampGrid * lv);
+        return sum * dA;
+    };
+    // Power the ball intercepts: a lamp element sends L_e dA pi sin^2(alpha) cos(theta) into the
+    // cone of half-angle alpha around the ball (exact for a cone inside its hemisphere).
+    const double intercepted = overLamp([&](const Vec3& q) {
+        const Vec3 d = g0 - q;
+        return Le.sum() * kPi * R * R / d.squaredNorm() * ln.dot(d.normalized());
+    });
+    auto bareFloor = [&](const Vec3& x) {
+        return overLamp([&](const Vec3& q) {
+            const Vec3 d = x - q;
+            return Le.sum() * ln.dot(d.normalized()) * d.normalized().y() * -1.0 / d.squaredNorm();
+        });
+    };
+    double photonPower = 0, backwardPower = 0, peak = 0, peakBare = 0, ring2 = 0;
+    int ringCount = 0;
+    for (int i = -15; i <= 15; ++i)
+        for (int j = -15; j <= 15; ++j) {
+            const Vec3 x(g0.x() + i * cell, 0, g0.z() + j * cell);
+            const Vec3 up(0, 1, 0);
+            const double ep = photons.irradiance(x, up).sum();
+            Rng rng(mixSeed(11, uint64_t(i + 100), uint64_t(j + 100)));
+            double eb = 0;
+            const int rays = 2000;
+            for (int k = 0; k < rays; ++k) {
+                Vec3 o = x + p->tracer->epsilon() * up, d = cosineDirection(up, rng);
+                Rgb thr = Rgb::Ones();
+                bool specular = false;
+                for (int depth = 0; depth < 32; ++depth) {
+                    const SurfaceHit hit = p->tracer->trace(o, d);
+                    if (!hit.found) break;
+                    if (hit.material->type == MaterialType::Diffuse) {
+                        if (specular && hit.frontFacing(d)) eb += (thr * hit.material->emission).sum();
+                        break;
+                    }
+                    SpecularBranch b[2];
+                    const int n = specularBranches(hit, d, b);
+                    if (n == 0) break;
+                    const SpecularBranch& c = n == 1 || rng.uniform() < b[0].probability ? b[0] : b[1];
+                    thr *= c.weight / c.probability;
+                    d = c.dir;
+                    o = p->tracer->offset(hit, d);
+                    specular = true;
+                }
+            }
+            eb *= kPi / rays;
+            photonPower += ep * cell * cell;
+            backwardPower += eb * cell * cell;
+            const double rr = std::hypot(i * cell, j * cell);
+            if (rr > 1.2 * R && rr < 1.5 * R) {
+                ring2 += eb;
+                ++ringCount;
+            }
+            if (eb > peak) {
+                peak = eb;
+                peakBare = bareFloor(x);
+            }
+        }
+    std::printf("caustic power within 15 cm of the glass ball's foot: photon map %.5f W, backward %.5f W, the ball "
+                "intercepts %.5f W; peak %.3f W/m^2 (the bare floor there gets %.3f directly), %.3f around it\n",
+                photonPower, backwardPower, intercepted, peak, peakBare, ring2 / ringCount);
+    EXPECT_NEAR(photonPower / backwardPower, 1.0, 0.10);
+    // Two glass-air interfaces of index 1.5 pass 80-90% of the intercepted light (Fresnel averaged
+    // over the ball's disc); the mirror ball adds a little of its own caustic to the window.
+    EXPECT_GT(photonPower, 0.75 * intercepted);
+    EXPECT_LT(photonPower, 1.05 * intercepted);
+    // Focused: the spot is brighter than the lamp alone makes the bare floor, many times over.
+    EXPECT_GT(peak, 5 * peakBare) << "the caustic concentrates the lamp's light";
+    EXPECT_GT(peak, 20 * ring2 / ringCount) << "the caustic stands out from its surroundings";
+}
