@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Penumbra's set-up on a fresh Debian 12 / Ubuntu machine: installs the Debian packages that are
 # missing, builds, then runs what was asked.
-#   bash scripts/bootstrap.sh cornell   # build, solve the Cornell box, write its picture
+#   bash scripts/bootstrap.sh cornell   # build, solve the Cornell box, render its final-gather picture
 #   bash scripts/bootstrap.sh test      # build, run every test (Release, then ASan+UBSan)
 #   bash scripts/bootstrap.sh build     # build only
 set -euo pipefail
@@ -41,7 +41,8 @@ case "${1:-}" in
     install_missing
     build build
     ./build/bin/penumbra solve scenes/cornell-box.json --out out/cornell
-    echo "bootstrap: report out/cornell/report.json, picture out/cornell/radiosity.png (linear: radiosity.exr)"
+    ./build/bin/penumbra render scenes/cornell-box.json --solution out/cornell --out out/cornell.exr
+    echo "bootstrap: report out/cornell/report.json, final-gather picture out/cornell.png (linear: out/cornell.exr)"
     ;;
   test)
     install_missing

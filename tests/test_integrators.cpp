@@ -81,7 +81,7 @@ TEST(PathTracer, PerfectMirrorWallKeepsTheFurnace) {
 
 TEST(FinalGather, FurnaceRadianceIsEOverOneMinusRho) {
     for (bool mirror : {false, true}) {
-        const Rgb mean = imageMean(gatherImage(furnace(0.5, mirror), 150, 16));
+        const Rgb mean = imageMean(gatherImage(furnace(0.5, mirror), 150, 64));
         EXPECT_NEAR(mean[0], 2.0, 0.02) << (mirror ? "with a mirror wall" : "all diffuse");
     }
 }
