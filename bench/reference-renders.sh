@@ -4,7 +4,7 @@
 # the error between the two. Images go to DIR (default out/reference): SCENE-final-gather.png,
 # SCENE-path.png and a side-by-side SCENE-side-by-side.png (each half auto-exposed by its own
 # log-average, which the two images share to within their difference).
-# Usage: bash bench/reference-renders.sh [DIR] [PATH_SPP]
+# Usage: [REUSE_PATH=1] bash bench/reference-renders.sh [DIR] [PATH_SPP]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 exe=./build/bin/penumbra
@@ -20,11 +20,14 @@ echo "|---|---|---|---|---|---|---|"
 for scene in cornell-box cornell-glass; do
   "$exe" solve "scenes/$scene.json" --out "$dir/$scene-solve" --quiet
   "$exe" render "scenes/$scene.json" --solution "$dir/$scene-solve" --out "$dir/$scene-final-gather.exr" 2>"$dir/$scene-fg.log"
-  "$exe" render "scenes/$scene.json" --integrator path --spp "$pathSpp" --out "$dir/$scene-path.exr" 2>"$dir/$scene-path.log"
+  # REUSE_PATH=1 keeps a reference already rendered (it takes minutes; it does not depend on the solve).
+  if [ "${REUSE_PATH:-0}" != 1 ] || [ ! -f "$dir/$scene-path.exr" ]; then
+    "$exe" render "scenes/$scene.json" --integrator path --spp "$pathSpp" --out "$dir/$scene-path.exr" 2>"$dir/$scene-path.log"
+  fi
   errors=$("$exe" compare "$dir/$scene-final-gather.exr" "$dir/$scene-path.exr")
   blurred=$(echo "$errors" | sed -n 's/.*after 5x5 box blur \([0-9.]*\)).*/\1/p')
   ratio=$(echo "$errors" | sed -n 's/.*brightness ratio \([0-9.]*\).*/\1/p')
   solve=$(python3 -c "import json,sys; s=json.load(open(sys.argv[1]))['solver']; t=s['seconds']; print(s['patches'], f\"{t['form_factors']:.1f} + {t['specular_transport']:.1f} + {t['solve']:.2f}\")" "$dir/$scene-solve/report.json")
-  echo "| $scene | ${solve% *} | ${solve#* } | $(seconds "$dir/$scene-fg.log") | $(seconds "$dir/$scene-path.log") | $blurred | $ratio |"
+  echo "| $scene | ${solve%% *} | ${solve#* } | $(seconds "$dir/$scene-fg.log") | $(seconds "$dir/$scene-path.log") | $blurred | $ratio |"
   oiiotool "$dir/$scene-final-gather.png" "$dir/$scene-path.png" --mosaic 2x1 -o "$dir/$scene-side-by-side.png" 2>/dev/null || true
 done

@@ -37,13 +37,23 @@ Rgb FinalGather::trace(const Vec3& origin, const Vec3& dir, Rng& rng, int depth)
 Rgb FinalGather::reflected(const SurfaceHit& x, Rng& rng, int level) const {
     const Rgb& rho = x.material->reflectance;
     if ((rho <= 0).all()) return Rgb::Zero();
-    Rgb E = directIrradiance(x, rng, level == 0 ? settings_.directSamples : 1);
+    const int lightSamples = level == 0 ? settings_.directSamples : 1;
+    const int gatherRays = level == 0 ? settings_.gatherRays : 1;
+    Rgb E = directIrradiance(x, rng, lightSamples, gatherRays);
     if (caustics_) E += caustics_->irradiance(x.point, x.normal);
-    E += indirectIrradiance(x, rng, level == 0 ? settings_.gatherRays : 1, level);
+    E += indirectIrradiance(x, rng, gatherRays, lightSamples, level);
     return rho * kInvPi * E;
 }
 
-Rgb FinalGather::directIrradiance(const SurfaceHit& x, Rng& rng, int samples) const {
+namespace {
+// Power heuristic for a sample of strategy a (n_a samples, pdf p_a) against strategy b.
+double misWeight(int na, double pa, int nb, double pb) {
+    const double a = na * pa, b = nb * pb;
+    return a * a / (a * a + b * b);
+}
+}  // namespace
+
+Rgb FinalGather::directIrradiance(const SurfaceHit& x, Rng& rng, int samples, int gatherRays) const {
     if (!tracer_.hasEmitters()) return Rgb::Zero();
     const Vec3 from = x.point + tracer_.epsilon() * x.normal;
     Rgb sum = Rgb::Zero();
@@ -55,12 +65,16 @@ Rgb FinalGather::directIrradiance(const SurfaceHit& x, Rng& rng, int samples) co
         const double cosX = x.normal.dot(w), cosL = -e.normal.dot(w);
         if (cosX <= 0 || cosL <= 0) continue;
         if (!tracer_.visible(from, e.point + tracer_.epsilon() * e.normal)) continue;
-        sum += e.radiance * (cosX * cosL / (d2 * e.pdfArea));
+        // Emitters are also found by the gather rays: the two estimates are combined by multiple
+        // importance sampling (power heuristic), which tames the 1/d^2 of points near an emitter.
+        const double lightPdf = e.pdfArea * d2 / cosL;
+        const double weight = misWeight(samples, lightPdf, gatherRays, cosX * kInvPi);
+        sum += e.radiance * (cosX / lightPdf * weight);
     }
     return sum / samples;
 }
 
-Rgb FinalGather::indirectIrradiance(const SurfaceHit& x, Rng& rng, int rays, int level) const {
+Rgb FinalGather::indirectIrradiance(const SurfaceHit& x, Rng& rng, int rays, int lightSamples, int level) const {
     const Vec3 from = x.point + tracer_.epsilon() * x.normal;
     Rgb sum = Rgb::Zero();
     for (int r = 0; r < rays; ++r) {
@@ -73,6 +87,12 @@ Rgb FinalGather::indirectIrradiance(const SurfaceHit& x, Rng& rng, int rays, int
             length += y.t;
             if (y.material->type == MaterialType::Diffuse) {
                 if (!y.frontFacing(d)) break;
+                if (depth == 0 && y.material->emits()) {
+                    // Direct light found by a gather ray: its share of the MIS combination.
+                    const double cosX = x.normal.dot(d), cosL = -y.normal.dot(d);
+                    const double lightPdf = tracer_.emitterPdfArea(y.patch) * y.t * y.t / cosL;
+                    sum += y.material->emission * misWeight(rays, cosX * kInvPi, lightSamples, lightPdf);
+                }
                 if (level == 0 && length < settings_.closeFactor * tracer_.patches().radius[size_t(y.patch)]) {
                     // Too close for patch-level radiosity: shade the landing point itself.
                     sum += throughput * reflected(y, rng, level + 1);

@@ -1,7 +1,8 @@
 // The final-gather view of a solved scene: the picture a user looks at. At every diffuse point the
 // camera sees (through any chain of mirrors and glass, split Whitted-style), the reflected radiance
 // is rho / pi times the sum of three irradiances that never count a light path twice:
-//   direct    light paths E -> x, by area sampling of the emitters with shadow rays;
+//   direct    light paths E -> x, by area sampling of the emitters with shadow rays, combined with
+//             the gather rays that hit an emitter by multiple importance sampling;
 //   caustic   paths E -> (mirror|glass)+ -> x, from the photon map;
 //   indirect  paths that last left a diffuse surface y, by cosine gather rays that read y's solved
 //             radiosity minus its emission (through mirrors and glass, if they meet any).
@@ -45,8 +46,10 @@ public:
 
 private:
     Rgb trace(const Vec3& origin, const Vec3& dir, Rng& rng, int depth) const;
-    Rgb directIrradiance(const SurfaceHit& x, Rng& rng, int samples) const;
-    Rgb indirectIrradiance(const SurfaceHit& x, Rng& rng, int rays, int level) const;
+    // Both estimate direct light too, combined by multiple importance sampling: each needs the
+    // other's sample count.
+    Rgb directIrradiance(const SurfaceHit& x, Rng& rng, int samples, int gatherRays) const;
+    Rgb indirectIrradiance(const SurfaceHit& x, Rng& rng, int rays, int lightSamples, int level) const;
 
     const SceneTracer& tracer_;
     const std::vector<std::array<Rgb, 4>>& corners_;

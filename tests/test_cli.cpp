@@ -147,6 +147,20 @@ TEST(Cli, CornellBoxSolvesToAConformingReportAndRendersFromTheSolution) {
     EXPECT_TRUE(fs::exists(out + "/view.exr"));
     EXPECT_TRUE(fs::exists(out + "/view.png"));
 
+    // The default integrator is the final gather; without mirrors or glass it runs no photon pass.
+    const CommandResult gather = run(cat("render ", scene, " --solution ", out, " --out ", out,
+                                         "/gather.exr --resolution 32x24 --spp 4 --gather-rays 4"));
+    EXPECT_EQ(gather.status, 0) << gather.output;
+    EXPECT_NE(gather.output.find("final-gather"), std::string::npos) << gather.output;
+    EXPECT_NE(gather.output.find("no photon pass"), std::string::npos) << gather.output;
+    EXPECT_TRUE(fs::exists(out + "/gather.exr"));
+    EXPECT_TRUE(fs::exists(out + "/gather.png"));
+    const CommandResult unknown = run(cat("render ", scene, " --solution ", out, " --integrator whitted --out ", out,
+                                          "/unknown.exr"));
+    EXPECT_NE(unknown.status, 0);
+    EXPECT_NE(unknown.output.find("--integrator"), std::string::npos) << unknown.output;
+    EXPECT_FALSE(fs::exists(out + "/unknown.exr"));
+
     // A solution belongs to its scene: another scene is refused, and nothing is written.
     const std::string other = test::writeText("other.json", sceneWith("", "") );
     const CommandResult mismatch = run(cat("render ", other, " --solution ", out, " --integrator radiosity --camera "
@@ -162,4 +176,26 @@ TEST(CliErrors, RenderWithoutCameraIsRefused) {
     EXPECT_NE(r.status, 0);
     EXPECT_NE(r.output.find("camera"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(test::tempDir() + "/nocam.exr"));
+}
+
+TEST(Cli, GlassSceneRendersWithoutASolutionAndAgainstThePathTracer) {
+    // Without --solution, render solves first; with mirrors and glass it traces caustic photons.
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-glass.json";
+    const std::string out = test::tempDir() + "/glass";
+    fs::remove_all(out);
+    const CommandResult gather = run(cat("render ", scene, " --out ", out, "/gather.exr --patches 200 --resolution 24x24",
+                                         " --spp 4 --gather-rays 4 --photons 20000"));
+    ASSERT_EQ(gather.status, 0) << gather.output;
+    EXPECT_NE(gather.output.find("solving first"), std::string::npos) << gather.output;
+    EXPECT_NE(gather.output.find("caustic photons"), std::string::npos) << gather.output;
+    const CommandResult path = run(cat("render ", scene, " --out ", out, "/path.exr --integrator path --patches 200",
+                                       " --resolution 24x24 --spp 16"));
+    ASSERT_EQ(path.status, 0) << path.output;
+    EXPECT_EQ(path.output.find("solving"), std::string::npos) << "the path tracer needs no solve: " << path.output;
+    const CommandResult compare = run(cat("compare ", out, "/gather.exr ", out, "/path.exr"));
+    EXPECT_EQ(compare.status, 0) << compare.output;
+    EXPECT_NE(compare.output.find("mean relative error"), std::string::npos) << compare.output;
+    const CommandResult mismatch = run(cat("compare ", out, "/gather.exr ", std::string(PENUMBRA_SOURCE_DIR),
+                                           "/docs/images/cornell-radiosity.png"));
+    EXPECT_NE(mismatch.status, 0);
 }
