@@ -103,13 +103,11 @@ Rgb FinalGather::indirectIrradiance(const SurfaceHit& x, Rng& rng, int rays, int
                 break;
             }
             // Through mirrors and glass, one branch at a time in proportion to its share.
-            SpecularBranch branches[2];
-            const int count = specularBranches(y, d, branches);
-            if (count == 0) break;
-            const SpecularBranch& b = count == 1 || rng.uniform() < branches[0].probability ? branches[0] : branches[1];
-            throughput *= b.weight / b.probability;
+            const std::optional<SpecularBranch> b = sampleSpecular(y, d, rng);
+            if (!b) break;
+            throughput *= b->weight;
             if (throughput.maxCoeff() < settings_.minThroughput) break;
-            d = b.dir;
+            d = b->dir;
             o = tracer_.offset(y, d);
         }
     }

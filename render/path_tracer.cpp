@@ -20,12 +20,10 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
         if (!hit.found) break;
         const Material& m = *hit.material;
         if (m.type != MaterialType::Diffuse) {
-            SpecularBranch branches[2];
-            const int count = specularBranches(hit, d, branches);
-            if (count == 0) break;
-            const SpecularBranch& b = count == 1 || rng.uniform() < branches[0].probability ? branches[0] : branches[1];
-            throughput *= b.weight / b.probability;
-            d = b.dir;
+            const std::optional<SpecularBranch> b = sampleSpecular(hit, d, rng);
+            if (!b) break;
+            throughput *= b->weight;
+            d = b->dir;
             o = tracer.offset(hit, d);
             specular = true;
         } else {

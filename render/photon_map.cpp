@@ -75,13 +75,10 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
                                                          power.matrix().cast<float>()});
                         break;
                     }
-                    SpecularBranch branches[2];
-                    const int count = specularBranches(hit, d, branches);
-                    if (count == 0) break;
-                    const SpecularBranch& b =
-                        count == 1 || rng.uniform() < branches[0].probability ? branches[0] : branches[1];
-                    power *= b.weight / b.probability;
-                    d = b.dir;
+                    const std::optional<SpecularBranch> b = sampleSpecular(hit, d, rng);
+                    if (!b) break;
+                    power *= b->weight;
+                    d = b->dir;
                     o = tracer.offset(hit, d);
                     specular = true;
                 }

@@ -46,6 +46,15 @@ int specularBranches(const SurfaceHit& hit, const Vec3& dir, SpecularBranch out[
     return 2;
 }
 
+std::optional<SpecularBranch> sampleSpecular(const SurfaceHit& hit, const Vec3& dir, Rng& rng) {
+    SpecularBranch branches[2];
+    const int count = specularBranches(hit, dir, branches);
+    if (count == 0) return std::nullopt;
+    SpecularBranch b = count == 1 || rng.uniform() < branches[0].probability ? branches[0] : branches[1];
+    b.weight /= b.probability;
+    return b;
+}
+
 Vec3 samplePatchPoint(const PatchSet& patches, size_t i, double u1, double u2, double u3) {
     const auto& c = patches.corners[i];
     Vec3 a = c[0], b = c[1], d = c[2];

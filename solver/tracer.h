@@ -88,6 +88,9 @@ struct SpecularBranch {
     double probability = 0;
 };
 int specularBranches(const SurfaceHit& hit, const Vec3& dir, SpecularBranch out[2]);
+// One branch for a path that follows one: chosen with its probability, its `weight` already
+// divided by it (the factor the path's throughput takes). Empty where the light is absorbed.
+std::optional<SpecularBranch> sampleSpecular(const SurfaceHit& hit, const Vec3& dir, Rng& rng);
 
 // A uniformly distributed point on a patch (the two triangles of a quad chosen by area).
 Vec3 samplePatchPoint(const PatchSet& patches, size_t patch, double u1, double u2, double u3);

@@ -71,17 +71,32 @@ inline double parallelRectangles(double a, double b, double c) {
             Y * std::sqrt(1 + X * X) * std::atan(Y / std::sqrt(1 + X * X)) - X * std::atan(X) - Y * std::atan(Y));
 }
 
-// A unit cube of six inward-facing quads, all of material "m" (given as JSON).
-inline std::string closedCube(const std::string& material) {
-    return R"({"materials": {"m": )" + material + R"(},
+// A unit cube of six inward-facing quads of material "m", except the top, of material `top`.
+// `materials` is the body of the "materials" object; `extra` (objects, each with a leading comma)
+// and `tail` (more top-level keys, with a leading comma) are appended as given.
+inline std::string cubeScene(const std::string& materials, const std::string& top = "m",
+                             const std::string& extra = "", const std::string& tail = "") {
+    return R"({"materials": {)" + materials + R"(},
       "objects": [
         {"name": "bottom", "type": "quad", "material": "m", "vertices": [[0,0,0],[0,0,1],[1,0,1],[1,0,0]]},
-        {"name": "top",    "type": "quad", "material": "m", "vertices": [[0,1,0],[1,1,0],[1,1,1],[0,1,1]]},
+        {"name": "top",    "type": "quad", "material": ")" + top + R"(", "vertices": [[0,1,0],[1,1,0],[1,1,1],[0,1,1]]},
         {"name": "left",   "type": "quad", "material": "m", "vertices": [[0,0,0],[0,1,0],[0,1,1],[0,0,1]]},
         {"name": "right",  "type": "quad", "material": "m", "vertices": [[1,0,0],[1,0,1],[1,1,1],[1,1,0]]},
         {"name": "back",   "type": "quad", "material": "m", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]},
-        {"name": "front",  "type": "quad", "material": "m", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}
-      ]})";
+        {"name": "front",  "type": "quad", "material": "m", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]})" +
+           extra + "]" + tail + "}";
+}
+
+// The closed unit cube, all of `material` (JSON).
+inline std::string closedCube(const std::string& material) { return cubeScene(R"("m": )" + material); }
+
+// The furnace cube: faces diffuse with reflectance rho, emitting L_e = 1. A second material
+// "spec" (JSON) may be given, for the top face (specTop) or for `extra` objects; `extra` and `tail`
+// as for cubeScene.
+inline std::string furnaceCube(double rho, const std::string& spec = "", bool specTop = false,
+                               const std::string& extra = "", const std::string& tail = "") {
+    const std::string m = cat(R"("m": {"type": "diffuse", "reflectance": )", rho, R"(, "emission": 1})");
+    return cubeScene(spec.empty() ? m : cat(m, R"(, "spec": )", spec), specTop ? "spec" : "m", extra, tail);
 }
 
 }  // namespace penumbra::test

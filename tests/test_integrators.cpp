@@ -18,19 +18,11 @@ using namespace penumbra;
 
 namespace {
 
-// The unit cube (all diffuse, emitting L_e = 1) seen from its centre; `top` may be a mirror.
+// The furnace cube seen from inside; its top may be a perfect mirror.
 std::string furnace(double rho, bool mirrorTop) {
-    const std::string m = cat(R"({"type": "diffuse", "reflectance": )", rho, R"(, "emission": 1})");
-    return cat(R"({"materials": {"m": )", m, R"(, "chrome": {"type": "mirror", "reflectance": 1}},
-      "objects": [
-        {"name": "bottom", "type": "quad", "material": "m", "vertices": [[0,0,0],[0,0,1],[1,0,1],[1,0,0]]},
-        {"name": "top",    "type": "quad", "material": ")", mirrorTop ? "chrome" : "m", R"(", "vertices": [[0,1,0],[1,1,0],[1,1,1],[0,1,1]]},
-        {"name": "left",   "type": "quad", "material": "m", "vertices": [[0,0,0],[0,1,0],[0,1,1],[0,0,1]]},
-        {"name": "right",  "type": "quad", "material": "m", "vertices": [[1,0,0],[1,0,1],[1,1,1],[1,1,0]]},
-        {"name": "back",   "type": "quad", "material": "m", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]},
-        {"name": "front",  "type": "quad", "material": "m", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}],
-      "camera": {"position": [0.5, 0.3, 0.2], "look_at": [0.5, 0.8, 1], "up": [0, 1, 0], "fov_y_deg": 90,
-                 "resolution": [16, 16]}})");
+    return test::furnaceCube(rho, R"({"type": "mirror", "reflectance": 1})", mirrorTop, "",
+                             R"(, "camera": {"position": [0.5, 0.3, 0.2], "look_at": [0.5, 0.8, 1], "up": [0, 1, 0],
+                                            "fov_y_deg": 90, "resolution": [16, 16]})");
 }
 
 // A 2 x 2 x 0.1 glass slab in front of a black lamp of radiance 1 filling the view.
@@ -46,6 +38,16 @@ std::string glassSlab(double ior) {
         {"name": "yhi",  "type": "quad", "material": "glass", "vertices": [[-1,1,0],[-1,1,0.1],[1,1,0.1],[1,1,0]]},
         {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[-5,-5,1],[-5,5,1],[5,5,1],[5,-5,1]]}],
       "camera": {"position": [0, 0, -1], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov_y_deg": 2, "resolution": [8, 8]}})");
+}
+
+PhotonStats tracePhotons(const std::string& json, int64_t photons, Rgb& emitted) {
+    const Scene scene = test::sceneFromJson(json);
+    const PatchSet patches = meshScene(scene, {});
+    const SceneTracer tracer(scene, patches);
+    PhotonSettings settings;
+    settings.photons = photons;
+    emitted = tracer.emittedPower();
+    return PhotonMap(tracer, settings).stats();
 }
 
 Rgb imageMean(const Image& image) { return meanOver(image, 0, 0, image.width, image.height); }
@@ -107,18 +109,13 @@ TEST(Photons, TotalPowerEqualsTheEmittersPower) {
         {"name": "warm", "type": "quad", "material": "warm", "vertices": [[-1,2,-1],[1,2,-1],[1,2,0],[-1,2,0]]},
         {"name": "cold", "type": "quad", "material": "cold", "vertices": [[-0.5,2,0.5],[0.5,2,0.5],[0.5,2,1],[-0.5,2,1]]},
         {"name": "ball", "type": "sphere", "material": "glass", "center": [0, 0.7, 0], "radius": 0.5}]})";
-    const Scene scene = test::sceneFromJson(json);
-    const PatchSet patches = meshScene(scene, {});
-    const SceneTracer tracer(scene, patches);
-    PhotonSettings settings;
-    settings.photons = 200000;
-    const PhotonMap map(tracer, settings);
-    const Rgb expected = tracer.emittedPower();
+    Rgb expected;
+    const PhotonStats stats = tracePhotons(json, 200000, expected);
     // pi L_e A per lamp: the tracer's sum is the closed form.
     EXPECT_NEAR(expected[0], kPi * (4 * 2 + 0.5 * 0.5), 1e-9);
-    for (int c = 0; c < 3; ++c) EXPECT_NEAR(map.stats().emittedPower[c], expected[c], 0.01 * expected[c]) << c;
-    EXPECT_GT(map.stats().stored, 1000);
-    EXPECT_LT(map.stats().storedPower.sum(), map.stats().emittedPower.sum());
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(stats.emittedPower[c], expected[c], 0.01 * expected[c]) << c;
+    EXPECT_GT(stats.stored, 1000);
+    EXPECT_LT(stats.storedPower.sum(), stats.emittedPower.sum());
 }
 
 TEST(Photons, OneLampsPhotonsCarryExactlyItsPower) {
@@ -127,13 +124,9 @@ TEST(Photons, OneLampsPhotonsCarryExactlyItsPower) {
       "objects": [
         {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]},
         {"name": "mirror", "type": "quad", "material": "chrome", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]}]})";
-    const Scene scene = test::sceneFromJson(json);
-    const PatchSet patches = meshScene(scene, {});
-    const SceneTracer tracer(scene, patches);
-    PhotonSettings settings;
-    settings.photons = 10000;
-    const PhotonMap map(tracer, settings);
-    for (int c = 0; c < 3; ++c) EXPECT_NEAR(map.stats().emittedPower[c], kPi * (3 - c), 1e-9) << c;
+    Rgb expected;
+    const PhotonStats stats = tracePhotons(json, 10000, expected);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(stats.emittedPower[c], kPi * (3 - c), 1e-9) << c;
 }
 
 TEST(FinalGather, DarkRoomBehindASharedWallStaysBlack) {

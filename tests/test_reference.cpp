@@ -229,12 +229,10 @@ TEST(ReferenceSlow, CornellGlassCausticAndMirrorBall) {
                         if (specular && hit.frontFacing(d)) eb += (thr * hit.material->emission).sum();
                         break;
                     }
-                    SpecularBranch b[2];
-                    const int n = specularBranches(hit, d, b);
-                    if (n == 0) break;
-                    const SpecularBranch& c = n == 1 || rng.uniform() < b[0].probability ? b[0] : b[1];
-                    thr *= c.weight / c.probability;
-                    d = c.dir;
+                    const std::optional<SpecularBranch> b = sampleSpecular(hit, d, rng);
+                    if (!b) break;
+                    thr *= b->weight;
+                    d = b->dir;
                     o = p->tracer->offset(hit, d);
                     specular = true;
                 }

@@ -55,21 +55,6 @@ TEST(Optics, CosineDirectionsHaveTheLambertianMean) {
 
 namespace {
 
-// The unit cube of closedCube() with one face replaced by `top` (material "spec") and an optional
-// extra object, all diffuse faces emitting L_e = 1 with reflectance rho.
-std::string furnaceWith(double rho, const std::string& spec, const std::string& extra, bool mirrorTop) {
-    const std::string diffuse = cat(R"({"type": "diffuse", "reflectance": )", rho, R"(, "emission": 1})");
-    return cat(R"({"materials": {"m": )", diffuse, R"(, "spec": )", spec, R"(},
-      "objects": [
-        {"name": "bottom", "type": "quad", "material": "m", "vertices": [[0,0,0],[0,0,1],[1,0,1],[1,0,0]]},
-        {"name": "top",    "type": "quad", "material": ")", mirrorTop ? "spec" : "m", R"(", "vertices": [[0,1,0],[1,1,0],[1,1,1],[0,1,1]]},
-        {"name": "left",   "type": "quad", "material": "m", "vertices": [[0,0,0],[0,1,0],[0,1,1],[0,0,1]]},
-        {"name": "right",  "type": "quad", "material": "m", "vertices": [[1,0,0],[1,0,1],[1,1,1],[1,1,0]]},
-        {"name": "back",   "type": "quad", "material": "m", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]},
-        {"name": "front",  "type": "quad", "material": "m", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]})",
-               extra, "]}");
-}
-
 SolveResult solveWithRays(const std::string& json, int patches, int specularRays) {
     SolveOptions o;
     o.meshing.targetPatches = patches;
@@ -94,7 +79,7 @@ TEST(SpecularTransport, PerfectMirrorWallKeepsTheFurnaceUniform) {
     // A lossless mirror wall makes the cube look like a closed box twice as long, by the image
     // method: still a furnace, so every diffuse patch has B = E / (1 - rho).
     const double rho = 0.8;
-    const SolveResult r = solveWithRays(furnaceWith(rho, R"({"type": "mirror", "reflectance": 1})", "", true), 150, 16384);
+    const SolveResult r = solveWithRays(test::furnaceCube(rho, R"({"type": "mirror", "reflectance": 1})", true), 150, 16384);
     ASSERT_FALSE(r.system.transport.empty());
     expectFurnace(r, rho, 0.01);
     EXPECT_LT(r.power.escaped.abs().maxCoeff(), 1e-3 * r.power.totalEmitted[0]);
@@ -103,9 +88,8 @@ TEST(SpecularTransport, PerfectMirrorWallKeepsTheFurnaceUniform) {
 TEST(SpecularTransport, LosslessGlassSphereKeepsTheFurnaceUniform) {
     const double rho = 0.5;
     const SolveResult r = solveWithRays(
-        furnaceWith(rho, R"({"type": "dielectric", "ior": 1.5})",
-                    R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [0.5, 0.5, 0.5], "radius": 0.25})",
-                    false),
+        test::furnaceCube(rho, R"({"type": "dielectric", "ior": 1.5})", false,
+                          R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [0.5, 0.5, 0.5], "radius": 0.25})"),
         200, 16384);
     expectFurnace(r, rho, 0.01);
     Rgb glassAbsorbed = Rgb::Zero();

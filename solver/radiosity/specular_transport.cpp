@@ -84,18 +84,16 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                 ++hits[size_t(g)];
                 Rgb thr = Rgb::Ones();
                 for (int depth = 0;; ++depth) {
-                    SpecularBranch branches[2];
-                    const int count = depth < settings.maxDepth ? specularBranches(h, d, branches) : 0;
-                    if (count == 0) {
+                    const std::optional<SpecularBranch> b =
+                        depth < settings.maxDepth ? sampleSpecular(h, d, rng) : std::nullopt;
+                    if (!b) {
                         fates.push_back({g, h.object, false, thr});
                         break;
                     }
-                    const SpecularBranch& b =
-                        count == 1 || rng.uniform() < branches[0].probability ? branches[0] : branches[1];
-                    const Rgb w = b.weight / b.probability;
-                    if ((w < 1).any()) fates.push_back({g, h.object, false, thr * (1 - w)});
-                    thr *= w;
-                    d = b.dir;
+                    // What the mirror or the glass tint keeps is absorbed there.
+                    if ((b->weight < 1).any()) fates.push_back({g, h.object, false, thr * (1 - b->weight)});
+                    thr *= b->weight;
+                    d = b->dir;
                     h = tracer.trace(tracer.offset(h, d), d);
                     ++row.rays;
                     if (!h.found) break;   // out of the scene: the remainder of the balance
