@@ -21,7 +21,7 @@
 namespace penumbra {
 
 struct GatherSettings {
-    int directSamples = 1;        // emitter samples per shading point and camera sample
+    int directSamples = 4;        // emitter samples per shading point and camera sample
     int gatherRays = 16;          // gather rays per shading point and camera sample
     int maxSpecularDepth = 16;    // mirror and glass bounces before a path stops
     double minThroughput = 1e-3;  // specular branches carrying less are dropped
