@@ -156,6 +156,7 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     Timer timer;
     if (integrator == "path") {
         // The reference needs no solve: only the geometry, meshed as a solve would mesh it.
+        if (!c.solution.empty()) logInfo("the path tracer needs no solution: --solution ", c.solution, " is not read");
         const PatchSet patches = meshScene(scene, s.options.meshing);
         const SceneTracer tracer(scene, patches);
         image = renderPath(tracer, camera, spp, common.seed);

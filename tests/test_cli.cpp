@@ -188,6 +188,11 @@ TEST(Cli, GlassSceneRendersWithoutASolutionAndAgainstThePathTracer) {
     ASSERT_EQ(gather.status, 0) << gather.output;
     EXPECT_NE(gather.output.find("solving first"), std::string::npos) << gather.output;
     EXPECT_NE(gather.output.find("caustic photons"), std::string::npos) << gather.output;
+    // Its report balances the power with mirrors and glass present (the contract's checker).
+    const CommandResult solve = run(cat("solve ", scene, " --out ", out, "/solve --patches 200 --quiet"));
+    ASSERT_EQ(solve.status, 0) << solve.output;
+    const std::string checker = std::string(PENUMBRA_SHARED_DIR) + "/tools/check-report";
+    EXPECT_EQ(std::system(cat("python3 ", checker, " ", out, "/solve/report.json ", scene, " > /dev/null").c_str()), 0);
     const CommandResult path = run(cat("render ", scene, " --out ", out, "/path.exr --integrator path --patches 200",
                                        " --resolution 24x24 --spp 16"));
     ASSERT_EQ(path.status, 0) << path.output;

@@ -117,3 +117,30 @@ TEST(SpecularTransport, MirrorReturnsTheLampsImage) {
                 0.005 * (1 - R) * test::parallelRectangles(1, 1, 1));
     EXPECT_NEAR(r.power.totalAbsorbed[0] + r.power.escaped[0], r.power.totalEmitted[0], 1e-9 * emitted);
 }
+
+TEST(SpecularTransport, AllSolversAgreeWithAMirrorAndGlass) {
+    // The sparse transfers enter Jacobi and Gauss-Seidel by target and Southwell by source.
+    const std::string json = test::furnaceCube(0.7, R"({"type": "mirror", "reflectance": 0.9})", true,
+                                               R"(, {"name": "ball", "type": "sphere", "material": "glass",
+                                                     "center": [0.5, 0.4, 0.5], "radius": 0.2})");
+    std::string withGlass = json;
+    withGlass.replace(withGlass.find(R"("spec": )"), 0, R"("glass": {"type": "dielectric", "ior": 1.5}, )");
+    std::vector<std::vector<Rgb>> results;
+    for (const char* solver : {"gauss-seidel", "jacobi", "southwell"}) {
+        SolveOptions o;
+        o.meshing.targetPatches = 150;
+        o.solver = solver;
+        o.solverSettings.tolerance = 1e-9;
+        o.solverSettings.maxIterations = 200000;
+        o.specular.raysPerPatch = 256;
+        const SolveResult r = solveScene(test::sceneFromJson(withGlass), o);
+        ASSERT_TRUE(r.solution.converged) << solver;
+        ASSERT_FALSE(r.system.transport.empty());
+        EXPECT_NEAR(r.power.totalAbsorbed[0] + r.power.escaped[0], r.power.totalEmitted[0], 1e-9 * r.power.totalEmitted[0])
+            << solver;
+        results.push_back(r.solution.B);
+    }
+    for (size_t s = 1; s < results.size(); ++s)
+        for (size_t i = 0; i < results[0].size(); ++i)
+            ASSERT_NEAR(results[s][i][0], results[0][i][0], 1e-6 * std::max(1.0, results[0][i][0])) << "solver " << s << ", patch " << i;
+}
