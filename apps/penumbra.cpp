@@ -17,6 +17,7 @@
 #include "render/final_gather.h"
 #include "render/image_metrics.h"
 #include "render/path_tracer.h"
+#include "render/orbit.h"
 #include "render/photon_map.h"
 #include "render/radiosity_view.h"
 #include "solver/solve.h"
@@ -41,6 +42,7 @@ struct SolveCli {
 struct RenderCli {
     std::string scene, out, solution, integrator = "final-gather", camera, resolution;
     int spp = 0;   // 0: the integrator's default
+    int orbit = 0; // > 0: that many turntable views
     double exposure = 0;
     GatherSettings gather;
     PhotonSettings photons;
@@ -148,37 +150,64 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     const std::string& integrator = c.integrator;
     if (integrator != "radiosity" && integrator != "final-gather" && integrator != "path")
         throw Error(cat("--integrator: unknown integrator '", integrator, "' (known: radiosity, final-gather, path)"));
-    const std::string ext = std::filesystem::path(c.out).extension().string();
+    const std::filesystem::path out(c.out);
+    const std::string ext = out.extension().string();
     if (ext != ".exr" && ext != ".hdr") throw Error(cat("--out ", c.out, ": expected an .exr or .hdr file name"));
     const int spp = c.spp > 0 ? c.spp : defaultSpp(integrator);
 
-    Image image;
-    Timer timer;
+    // The geometry: the solve's patches, or (path tracer) the scene meshed as a solve would mesh it.
+    StoredSolution stored;
     if (integrator == "path") {
-        // The reference needs no solve: only the geometry, meshed as a solve would mesh it.
         if (!c.solution.empty()) logInfo("the path tracer needs no solution: --solution ", c.solution, " is not read");
-        const PatchSet patches = meshScene(scene, s.options.meshing);
-        const SceneTracer tracer(scene, patches);
-        image = renderPath(tracer, camera, spp, common.seed);
+        stored.patches = meshScene(scene, s.options.meshing);
     } else {
-        const StoredSolution stored = solutionFor(scene, c, s, common);
-        timer = Timer();
-        if (integrator == "radiosity") {
-            const auto corners = interpolateCorners(stored.patches, stored.display);
-            RayScene rays(stored.patches);
-            image = renderRadiosityView(scene, camera, stored.patches, rays, corners, {spp, common.seed});
-        } else {
-            image = renderSolvedScene(scene, stored.patches, stored.display, camera, spp, common.seed, c.gather,
-                                      c.photons);
+        stored = solutionFor(scene, c, s, common);
+    }
+    // One camera, or a turntable of them: OUT-000.exr, OUT-001.exr, ... and OUT-orbit.json.
+    std::vector<Camera> cameras{camera};
+    std::vector<std::string> names{c.out};
+    if (c.orbit > 0) {
+        cameras = orbitCameras(camera, patchesCentre(stored.patches), c.orbit);
+        names.clear();
+        for (int k = 0; k < c.orbit; ++k) {
+            char suffix[16];
+            std::snprintf(suffix, sizeof suffix, "-%03d", k);
+            names.push_back((out.parent_path() / (out.stem().string() + suffix + ext)).string());
         }
     }
+
+    Timer timer;
+    std::vector<Image> images;
+    if (integrator == "path") {
+        const SceneTracer tracer(scene, stored.patches);
+        for (const Camera& cam : cameras) images.push_back(renderPath(tracer, cam, spp, common.seed));
+    } else if (integrator == "radiosity") {
+        const auto corners = interpolateCorners(stored.patches, stored.display);
+        RayScene rays(stored.patches);
+        for (const Camera& cam : cameras)
+            images.push_back(renderRadiosityView(scene, cam, stored.patches, rays, corners, {spp, common.seed}));
+    } else {
+        for (const Camera& cam : cameras)
+            images.push_back(renderSolvedScene(scene, stored.patches, stored.display, cam, spp, common.seed, c.gather,
+                                               c.photons));
+    }
     const double seconds = timer.seconds();
-    const std::string parent = std::filesystem::path(c.out).parent_path().string();
-    if (!parent.empty()) ensureDirectory(parent);
-    writeLinearImage(image, c.out);
-    writePreviewPng(image, previewPathFor(c.out), c.exposure);
-    logInfo("wrote ", c.out, " and ", previewPathFor(c.out), " (", camera.width, "x", camera.height, ", ", integrator,
-            ", ", spp, " spp) in ", seconds, " s");
+
+    // Everything is rendered before the first file is written.
+    if (!out.parent_path().empty()) ensureDirectory(out.parent_path().string());
+    for (size_t k = 0; k < images.size(); ++k) {
+        writeLinearImage(images[k], names[k]);
+        writePreviewPng(images[k], previewPathFor(names[k]), c.exposure);
+    }
+    if (c.orbit > 0) {
+        const std::string list = (out.parent_path() / (out.stem().string() + "-orbit.json")).string();
+        writeFileAtomic(list, orbitJson(cameras, names, scene.unitScale));
+        logInfo("wrote ", images.size(), " orbit views ", names.front(), " .. ", names.back(), " and their cameras in ",
+                list, " (", camera.width, "x", camera.height, ", ", integrator, ", ", spp, " spp) in ", seconds, " s");
+    } else {
+        logInfo("wrote ", c.out, " and ", previewPathFor(c.out), " (", camera.width, "x", camera.height, ", ",
+                integrator, ", ", spp, " spp) in ", seconds, " s");
+    }
     return 0;
 }
 
@@ -225,6 +254,9 @@ int main(int argc, char** argv) {
         ->capture_default_str()->check(CLI::Range(0, 1000));
     renderCmd->add_option("--resolution", render.resolution, "WIDTHxHEIGHT, overrides the camera's");
     renderCmd->add_option("--camera", render.camera, "Camera as JSON, overrides the scene's");
+    renderCmd->add_option("--orbit", render.orbit,
+                          "Render N views on a circle around the scene's centre (OUT-000.exr, ...; cameras in OUT-orbit.json)")
+        ->check(CLI::Range(1, 100000));
     renderCmd->add_option("--exposure", render.exposure, "Exposure of the PNG preview, in stops");
     addSolveOptions(renderCmd, renderSolve);
 

@@ -10,6 +10,22 @@ namespace {
 nlohmann::json rgbJson(const Rgb& c) { return nlohmann::json::array({c[0], c[1], c[2]}); }
 }  // namespace
 
+std::string orbitJson(const std::vector<Camera>& cameras, const std::vector<std::string>& images, double unitScale) {
+    nlohmann::json views = nlohmann::json::array();
+    auto point = [&](const Vec3& p) { return nlohmann::json::array({p.x() / unitScale, p.y() / unitScale, p.z() / unitScale}); };
+    for (size_t k = 0; k < cameras.size(); ++k) {
+        const Camera& c = cameras[k];
+        views.push_back({{"image", images[k]},
+                         {"camera",
+                          {{"position", point(c.position)},
+                           {"look_at", point(c.lookAt)},
+                           {"up", {c.up.x(), c.up.y(), c.up.z()}},
+                           {"fov_y_deg", c.fovYDeg},
+                           {"resolution", {c.width, c.height}}}}});
+    }
+    return nlohmann::json{{"views", views}}.dump(2) + "\n";
+}
+
 std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemory) {
     using Json = nlohmann::json;
     const size_t objects = scene.objects.size();

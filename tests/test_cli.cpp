@@ -9,7 +9,11 @@
 #include <cstdio>
 #include <filesystem>
 
+#include <nlohmann/json.hpp>
+
 #include "fixtures.h"
+#include "io/image_io.h"
+#include "render/image_metrics.h"
 
 using namespace penumbra;
 namespace fs = std::filesystem;
@@ -203,4 +207,44 @@ TEST(Cli, GlassSceneRendersWithoutASolutionAndAgainstThePathTracer) {
     const CommandResult mismatch = run(cat("compare ", out, "/gather.exr ", std::string(PENUMBRA_SOURCE_DIR),
                                            "/docs/images/cornell-radiosity.png"));
     EXPECT_NE(mismatch.status, 0);
+}
+
+TEST(Cli, OrbitViewsDifferAndEachMatchesARenderOfItsCamera) {
+    // A lit ball on a floor, the lamp off to one side: every azimuth sees something else.
+    const std::string scene = test::writeText("orbit.json", R"({"materials": {
+          "white": {"type": "diffuse", "reflectance": 0.7},
+          "lamp": {"type": "diffuse", "reflectance": 0.5, "emission": 5}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "white", "vertices": [[-2,0,-2],[-2,0,2],[2,0,2],[2,0,-2]]},
+        {"name": "ball", "type": "sphere", "material": "white", "center": [0, 0.5, 0], "radius": 0.5},
+        {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[1,2,0],[2,2,0],[2,2,1],[1,2,1]]}],
+      "camera": {"position": [0, 1.5, -4], "look_at": [0, 0.5, 0], "fov_y_deg": 40, "resolution": [40, 30]}})");
+    const std::string out = test::tempDir() + "/orbit";
+    fs::remove_all(out);
+    ASSERT_EQ(run(cat("solve ", scene, " --out ", out, "/solve --patches 200 --quiet")).status, 0);
+    const CommandResult orbit = run(cat("render ", scene, " --solution ", out, "/solve --integrator radiosity --orbit 4 --out ",
+                                        out, "/view.exr --quiet"));
+    ASSERT_EQ(orbit.status, 0) << orbit.output;
+    std::ifstream listFile(out + "/view-orbit.json");
+    const nlohmann::json list = nlohmann::json::parse(listFile);
+    ASSERT_EQ(list["views"].size(), 4u);
+    std::vector<Image> views;
+    for (const auto& v : list["views"]) {
+        const std::string image = v["image"];
+        ASSERT_TRUE(fs::exists(image)) << image;
+        EXPECT_TRUE(fs::exists(previewPathFor(image))) << image;
+        views.push_back(readLinearImage(image));
+    }
+    for (size_t a = 0; a < views.size(); ++a)
+        for (size_t b = a + 1; b < views.size(); ++b)
+            EXPECT_GT(compareImages(views[a], views[b]).meanRelative, 0.05) << "views " << a << " and " << b;
+    // Each view is the render of its camera, as `render --camera` makes it.
+    for (size_t k = 0; k < views.size(); ++k) {
+        const std::string camera = list["views"][k]["camera"].dump();
+        const CommandResult single = run(cat("render ", scene, " --solution ", out, "/solve --integrator radiosity --camera '",
+                                             camera, "' --out ", out, "/single.exr --quiet"));
+        ASSERT_EQ(single.status, 0) << single.output;
+        const ImageError e = compareImages(readLinearImage(out + "/single.exr"), views[k]);
+        EXPECT_LT(e.rmse, 1e-6) << "view " << k;
+    }
 }
