@@ -9,6 +9,7 @@
 #include "core/log.h"
 #include "core/parallel.h"
 #include "io/atomic_file.h"
+#include "io/export.h"
 #include "io/image_io.h"
 #include "io/report.h"
 #include "io/solution.h"
@@ -211,6 +212,26 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     return 0;
 }
 
+int runExport(const std::string& dir, const std::string& out, std::string format, double stops) {
+    const std::string ext = std::filesystem::path(out).extension().string();
+    if (format.empty()) format = ext == ".ply" ? "ply" : (ext == ".glb" || ext == ".gltf") ? "gltf" : "";
+    if (format != "gltf" && format != "ply")
+        throw Error(cat("--format: expected gltf or ply (or an --out ending in .glb, .gltf or .ply), got '",
+                        format.empty() ? ext : format, "'"));
+    const StoredSolution stored = readSolution((std::filesystem::path(dir) / "solution.bin").string());
+    const ExportMesh mesh = exportMesh(stored.patches, stored.display);
+    const double exposure = exportExposure(mesh, stops);
+    const std::string parent = std::filesystem::path(out).parent_path().string();
+    if (!parent.empty()) ensureDirectory(parent);
+    if (format == "gltf")
+        writeGltf(mesh, out, exposure);
+    else
+        writePly(mesh, out, exposure);
+    logInfo("wrote ", out, ": ", mesh.positions.size(), " vertices, ", mesh.triangles.size(), " triangles, colours = ",
+            format == "gltf" ? "min(1, " : "sRGB(", exposure, " x radiance)");
+    return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -260,6 +281,14 @@ int main(int argc, char** argv) {
     renderCmd->add_option("--exposure", render.exposure, "Exposure of the PNG preview, in stops");
     addSolveOptions(renderCmd, renderSolve);
 
+    std::string exportDir, exportOut, exportFormat;
+    double exportStops = 0;
+    CLI::App* exportCmd = app.add_subcommand("export", "Export a solved scene's mesh with per-vertex radiance");
+    exportCmd->add_option("solution", exportDir, "Directory of a solve")->required();
+    exportCmd->add_option("--out", exportOut, "Output file (.glb, .gltf or .ply)")->required();
+    exportCmd->add_option("--format", exportFormat, "gltf | ply (default: from the --out extension)");
+    exportCmd->add_option("--exposure", exportStops, "Exposure of the colours, in stops from the automatic one");
+
     std::string compareImage, compareReference;
     CLI::App* compareCmd = app.add_subcommand("compare", "Compare an image with a reference (e.g. a path-traced one)");
     compareCmd->add_option("image", compareImage, "Image (.exr or .hdr)")->required();
@@ -270,7 +299,7 @@ int main(int argc, char** argv) {
     viewCmd->add_option("scene", viewScene, "Scene JSON file")->required();
     viewCmd->add_option("--solution", viewSolution, "Directory of a previous solve");
 
-    for (CLI::App* cmd : {solveCmd, renderCmd, viewCmd}) {
+    for (CLI::App* cmd : {solveCmd, renderCmd, viewCmd, exportCmd}) {
         cmd->add_option("--threads", common.threads, "Threads (0: all cores)");
         cmd->add_flag("--quiet,-q", common.quiet, "Warnings and errors only");
         cmd->add_flag("--verbose,-v", common.verbose, "Debug output");
@@ -286,6 +315,7 @@ int main(int argc, char** argv) {
         setupLogging(common);
         if (*solveCmd) return runSolve(solve, common);
         if (*renderCmd) return runRender(render, renderSolve, common);
+        if (*exportCmd) return runExport(exportDir, exportOut, exportFormat, exportStops);
         if (*compareCmd) {
             const Image a = readLinearImage(compareImage), ref = readLinearImage(compareReference);
             const ImageError raw = compareImages(a, ref), blurred = compareBlurred(a, ref);

@@ -44,22 +44,29 @@ Image readLinearImage(const std::string& path) {
     return image;
 }
 
-void writePreviewPng(const Image& image, const std::string& path, double exposureStops) {
+double exposureScale(const std::vector<double>& luminances, double stops) {
     double logSum = 0;
     size_t count = 0;
-    for (int y = 0; y < image.height; ++y)
-        for (int x = 0; x < image.width; ++x) {
-            const double l = luminance(image.at(x, y));
-            if (l > 0) logSum += std::log(l), ++count;
-        }
+    for (double l : luminances)
+        if (l > 0) logSum += std::log(l), ++count;
     const double key = count ? std::exp(logSum / double(count)) : 1;
-    const double scale = 0.18 / key * std::pow(2.0, exposureStops);
+    return 0.18 / key * std::pow(2.0, stops);
+}
+
+unsigned char srgb8(double linear) {
+    const double v = std::clamp(linear, 0.0, 1.0);
+    const double s = v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055;
+    return static_cast<unsigned char>(std::lround(255 * s));
+}
+
+void writePreviewPng(const Image& image, const std::string& path, double exposureStops) {
+    std::vector<double> luminances;
+    luminances.reserve(size_t(image.width) * size_t(image.height));
+    for (int y = 0; y < image.height; ++y)
+        for (int x = 0; x < image.width; ++x) luminances.push_back(luminance(image.at(x, y)));
+    const double scale = exposureScale(luminances, exposureStops);
     std::vector<unsigned char> pixels(image.rgb.size());
-    for (size_t k = 0; k < image.rgb.size(); ++k) {
-        const double v = std::clamp(double(image.rgb[k]) * scale, 0.0, 1.0);
-        const double s = v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055;
-        pixels[k] = static_cast<unsigned char>(std::lround(255 * s));
-    }
+    for (size_t k = 0; k < image.rgb.size(); ++k) pixels[k] = srgb8(double(image.rgb[k]) * scale);
     writeWith(path, image.width, image.height, OIIO::TypeDesc::UINT8, pixels.data());
 }
 

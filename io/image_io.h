@@ -2,6 +2,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "render/image.h"
 
@@ -15,6 +16,12 @@ Image readLinearImage(const std::string& path);
 // Writes an 8-bit sRGB preview. exposureStops shifts the automatic exposure (which puts the
 // log-average luminance at middle grey) by that many stops.
 void writePreviewPng(const Image& image, const std::string& path, double exposureStops = 0);
+
+// The preview's exposure: the factor that puts the log-average of the positive luminances at middle
+// grey (0.18), shifted by `stops`.
+double exposureScale(const std::vector<double>& luminances, double stops);
+// A linear value in [0, 1] (clamped) encoded as 8-bit sRGB.
+unsigned char srgb8(double linear);
 
 // `IMAGE.exr` -> `IMAGE.png`.
 std::string previewPathFor(const std::string& linearPath);

@@ -52,3 +52,24 @@ PolygonSoup readPolygonSoup(const std::string& path, const std::string& field) {
 }
 
 }  // namespace penumbra
+
+namespace penumbra {
+
+void writeColouredPly(const std::string& path, const std::vector<Vec3>& vertices,
+                      const std::vector<std::array<int, 3>>& triangles,
+                      const std::vector<std::array<unsigned char, 3>>& colours) {
+    OpenMesh::PolyMesh_ArrayKernelT<> mesh;
+    mesh.request_vertex_colors();
+    std::vector<OpenMesh::VertexHandle> handles;
+    handles.reserve(vertices.size());
+    for (size_t i = 0; i < vertices.size(); ++i) {
+        const Vec3& p = vertices[i];
+        handles.push_back(mesh.add_vertex({float(p.x()), float(p.y()), float(p.z())}));
+        mesh.set_color(handles.back(), {colours[i][0], colours[i][1], colours[i][2]});
+    }
+    for (const auto& t : triangles) mesh.add_face(handles[size_t(t[0])], handles[size_t(t[1])], handles[size_t(t[2])]);
+    OpenMesh::IO::Options options = OpenMesh::IO::Options::VertexColor | OpenMesh::IO::Options::Binary;
+    if (!OpenMesh::IO::write_mesh(mesh, path, options)) throw Error(cat(path, ": cannot write the PLY file"));
+}
+
+}  // namespace penumbra

@@ -1,7 +1,9 @@
 // Reads OBJ, PLY, OFF and STL files through OpenMesh's readers into a polygon soup.
 #pragma once
 
+#include <array>
 #include <string>
+#include <vector>
 
 #include "mesh/scene.h"
 
@@ -10,5 +12,11 @@ namespace penumbra {
 // Throws Error naming `path` (and `field` for context) when the file is missing, unreadable, or
 // holds no faces.
 PolygonSoup readPolygonSoup(const std::string& path, const std::string& field);
+
+// Writes triangles with 8-bit vertex colours as a binary PLY through OpenMesh's writer. Throws
+// Error naming `path` if it cannot be written.
+void writeColouredPly(const std::string& path, const std::vector<Vec3>& vertices,
+                      const std::vector<std::array<int, 3>>& triangles,
+                      const std::vector<std::array<unsigned char, 3>>& colours);
 
 }  // namespace penumbra

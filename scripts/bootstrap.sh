@@ -10,7 +10,7 @@ cd "$(dirname "$0")/.."
 PACKAGES=(
   cmake ninja-build g++ pkg-config python3
   libembree-dev libeigen3-dev libopenimageio-dev openimageio-tools libopenmesh-dev
-  libtbb-dev nlohmann-json3-dev libcli11-dev libgtest-dev libnanoflann-dev
+  libtbb-dev nlohmann-json3-dev libcli11-dev libgtest-dev libnanoflann-dev libtinygltf-dev
 )
 
 install_missing() {

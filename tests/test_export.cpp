@@ -1,0 +1,125 @@
+// Export of the solved mesh: the glTF reloads (tinygltf), has one colour per vertex, its colours
+// are the stated tone mapping of its radiance, and its radiance agrees with the solution (each
+// vertex a blend of its object's patch values; each object's mean close to the report's). The PLY
+// holds the same vertices with the sRGB encoding of the same colours.
+#include <gtest/gtest.h>
+
+#include <tiny_gltf.h>
+
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+
+#include "fixtures.h"
+#include "io/image_io.h"
+#include "io/solution.h"
+
+using namespace penumbra;
+namespace fs = std::filesystem;
+
+namespace {
+
+int runCli(const std::string& args) { return std::system((std::string(PENUMBRA_EXE) + " " + args + " --quiet").c_str()); }
+
+std::vector<float> vec3Attribute(const tinygltf::Model& model, const tinygltf::Primitive& p, const std::string& name) {
+    const auto it = p.attributes.find(name);
+    if (it == p.attributes.end()) return {};
+    const tinygltf::Accessor& a = model.accessors[size_t(it->second)];
+    EXPECT_EQ(a.type, TINYGLTF_TYPE_VEC3) << name;
+    EXPECT_EQ(a.componentType, TINYGLTF_COMPONENT_TYPE_FLOAT) << name;
+    const tinygltf::BufferView& v = model.bufferViews[size_t(a.bufferView)];
+    std::vector<float> out(3 * a.count);
+    std::memcpy(out.data(), model.buffers[size_t(v.buffer)].data.data() + v.byteOffset + a.byteOffset,
+                out.size() * sizeof(float));
+    return out;
+}
+
+}  // namespace
+
+TEST(Export, GltfReloadsWithOneColourPerVertexAgreeingWithTheSolution) {
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
+    const std::string dir = test::tempDir() + "/export";
+    fs::remove_all(dir);
+    ASSERT_EQ(runCli(cat("solve ", scene, " --out ", dir, " --patches 300")), 0);
+    ASSERT_EQ(runCli(cat("export ", dir, " --out ", dir, "/scene.glb")), 0);
+    ASSERT_EQ(runCli(cat("export ", dir, " --out ", dir, "/scene.ply")), 0);
+
+    tinygltf::Model model;
+    tinygltf::TinyGLTF loader;
+    std::string error, warning;
+    ASSERT_TRUE(loader.LoadBinaryFromFile(&model, &error, &warning, dir + "/scene.glb")) << error;
+    ASSERT_EQ(model.meshes.size(), 1u);
+    const tinygltf::Primitive& p = model.meshes[0].primitives.at(0);
+    const std::vector<float> position = vec3Attribute(model, p, "POSITION"), colour = vec3Attribute(model, p, "COLOR_0"),
+                             radiance = vec3Attribute(model, p, "_RADIANCE");
+    ASSERT_FALSE(position.empty());
+    ASSERT_EQ(colour.size(), position.size()) << "one colour per vertex";
+    ASSERT_EQ(radiance.size(), position.size());
+    const double exposure = model.asset.extras.Get("penumbra").Get("exposure").GetNumberAsDouble();
+    ASSERT_GT(exposure, 0);
+    for (size_t k = 0; k < colour.size(); ++k) ASSERT_NEAR(colour[k], std::min(1.0, exposure * radiance[k]), 1e-6);
+
+    // Against the solution: the solved patches, in the order the export walks them.
+    const StoredSolution solution = readSolution(dir + "/solution.bin");
+    const PatchSet& patches = solution.patches;
+    std::map<int, std::pair<Rgb, Rgb>> range;   // object -> min, max of B / pi
+    for (size_t i = 0; i < patches.size(); ++i) {
+        const Rgb L = solution.display[i] * kInvPi;
+        auto [it, fresh] = range.emplace(patches.object[i], std::make_pair(L, L));
+        it->second.first = it->second.first.min(L);
+        it->second.second = it->second.second.max(L);
+    }
+    std::map<int, std::pair<Rgb, double>> objectMean;   // sum of area-weighted vertex radiance, area
+    size_t v = 0;
+    for (size_t i = 0; i < patches.size(); ++i) {
+        const int o = patches.object[i];
+        for (int k = 0; k < patches.cornerCount[i]; ++k, ++v) {
+            const Rgb L(radiance[3 * v], radiance[3 * v + 1], radiance[3 * v + 2]);
+            const Vec3 x(position[3 * v], position[3 * v + 1], position[3 * v + 2]);
+            ASSERT_LT((x - patches.corners[i][size_t(k)]).norm(), 1e-6) << "vertex " << v;
+            for (int c = 0; c < 3; ++c) {
+                ASSERT_GE(L[c], range[o].first[c] * (1 - 1e-5)) << "vertex " << v;
+                ASSERT_LE(L[c], range[o].second[c] * (1 + 1e-5)) << "vertex " << v;
+            }
+            auto [it, fresh] = objectMean.emplace(o, std::make_pair(Rgb(Rgb::Zero()), 0.0));
+            it->second.first += patches.area[i] / patches.cornerCount[i] * L;
+            it->second.second += patches.area[i] / patches.cornerCount[i];
+        }
+    }
+    ASSERT_EQ(v, position.size() / 3);
+    std::ifstream reportFile(dir + "/report.json");
+    const nlohmann::json report = nlohmann::json::parse(reportFile);
+    const Scene s = loadScene(scene);
+    for (const auto& [o, sum] : objectMean) {
+        const double expected = report["objects"][s.objects[size_t(o)].name]["radiosity_mean"][0].get<double>() * kInvPi;
+        EXPECT_NEAR(sum.first[0] / sum.second, expected, 0.05 * expected) << s.objects[size_t(o)].name;
+    }
+
+    // The PLY: the same vertices, binary little endian x y z (float) red green blue (uchar).
+    std::ifstream ply(dir + "/scene.ply", std::ios::binary);
+    std::string line, header;
+    while (std::getline(ply, line) && line != "end_header") header += line + "\n";
+    ASSERT_NE(header.find(cat("element vertex ", position.size() / 3)), std::string::npos) << header;
+    ASSERT_NE(header.find("property uchar red"), std::string::npos) << header;
+    for (size_t k = 0; k < position.size() / 3; ++k) {
+        float xyz[3];
+        unsigned char rgb[3];
+        ply.read(reinterpret_cast<char*>(xyz), sizeof xyz);
+        ply.read(reinterpret_cast<char*>(rgb), sizeof rgb);
+        ASSERT_TRUE(ply.good());
+        for (int c = 0; c < 3; ++c) {
+            ASSERT_EQ(xyz[c], position[3 * k + size_t(c)]);
+            ASSERT_NEAR(int(rgb[c]), int(srgb8(exposure * radiance[3 * k + size_t(c)])), 1) << "vertex " << k;
+        }
+    }
+}
+
+TEST(Export, UnknownFormatIsRefusedAndWritesNothing) {
+    const std::string dir = test::tempDir() + "/export";
+    fs::create_directories(dir);
+    EXPECT_NE(runCli(cat("export ", dir, " --out ", dir, "/scene.obj 2>/dev/null")), 0);
+    EXPECT_FALSE(fs::exists(dir + "/scene.obj"));
+    EXPECT_NE(runCli(cat("export ", test::tempDir(), "/nowhere --out ", dir, "/x.glb 2>/dev/null")), 0);
+    EXPECT_FALSE(fs::exists(dir + "/x.glb"));
+}
