@@ -9,6 +9,8 @@
 #include "core/log.h"
 #include "core/parallel.h"
 #include "io/atomic_file.h"
+#include <fstream>
+#include <sstream>
 #include "io/export.h"
 #include "io/image_io.h"
 #include "io/report.h"
@@ -22,6 +24,7 @@
 #include "render/photon_map.h"
 #include "render/radiosity_view.h"
 #include "solver/solve.h"
+#include "viewer/viewer.h"
 
 using namespace penumbra;
 
@@ -212,6 +215,27 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     return 0;
 }
 
+int runView(RenderCli& c, SolveCli& s, ViewerOptions& options, const CommonOptions& common) {
+    const Scene scene = loadScene(c.scene);
+    const Camera camera = cameraFor(scene, c);
+    if (!options.screenshot.empty() && std::filesystem::path(options.screenshot).extension() != ".png")
+        throw Error(cat("--screenshot ", options.screenshot, ": expected a .png file name"));
+    requireDisplay();   // before any solving
+    const StoredSolution stored = solutionFor(scene, c, s, common);
+    if (!c.solution.empty()) {
+        std::ifstream report((std::filesystem::path(c.solution) / "report.json").string());
+        std::stringstream text;
+        text << report.rdbuf();
+        options.statistics = summariseReport(text.str());
+    }
+    if (!options.screenshot.empty()) {
+        const std::string parent = std::filesystem::path(options.screenshot).parent_path().string();
+        if (!parent.empty()) ensureDirectory(parent);
+    }
+    runViewer(scene, stored.patches, stored.display, camera, options);
+    return 0;
+}
+
 int runExport(const std::string& dir, const std::string& out, std::string format, double stops) {
     const std::string ext = std::filesystem::path(out).extension().string();
     if (format.empty()) format = ext == ".ply" ? "ply" : (ext == ".glb" || ext == ".gltf") ? "gltf" : "";
@@ -295,9 +319,19 @@ int main(int argc, char** argv) {
     compareCmd->add_option("reference", compareReference, "Reference image of the same size")->required();
 
     CLI::App* viewCmd = app.add_subcommand("view", "Browse a solved scene interactively");
-    std::string viewScene, viewSolution;
-    viewCmd->add_option("scene", viewScene, "Scene JSON file")->required();
-    viewCmd->add_option("--solution", viewSolution, "Directory of a previous solve");
+    RenderCli view;
+    SolveCli viewSolve;
+    ViewerOptions viewer;
+    viewCmd->add_option("scene", view.scene, "Scene JSON file")->required();
+    viewCmd->add_option("--solution", view.solution, "Directory of a previous solve (default: solve first)");
+    viewCmd->add_option("--camera", view.camera, "Starting camera as JSON, overrides the scene's");
+    viewCmd->add_option("--resolution", view.resolution, "Window size WIDTHxHEIGHT (default: the camera's)");
+    viewCmd->add_option("--exposure", viewer.exposureStops, "Exposure, in stops from the automatic one");
+    viewCmd->add_option("--screenshot", viewer.screenshot,
+                        "Draw --frames frames from the camera, save the last to this PNG and exit");
+    viewCmd->add_option("--frames", viewer.frames, "Frames drawn before --screenshot")->capture_default_str()
+        ->check(CLI::Range(1, 100000));
+    addSolveOptions(viewCmd, viewSolve);
 
     for (CLI::App* cmd : {solveCmd, renderCmd, viewCmd, exportCmd}) {
         cmd->add_option("--threads", common.threads, "Threads (0: all cores)");
@@ -323,9 +357,7 @@ int main(int argc, char** argv) {
                         raw.meanRelative, blurred.meanRelative, raw.rmse, raw.meanRatio);
             return 0;
         }
-        if (*viewCmd)
-            throw Error("view: the interactive viewer is not built yet (issue 4); render the solved radiosity with "
-                        "`penumbra render SCENE --solution DIR --integrator radiosity --out IMAGE.exr`");
+        if (*viewCmd) return runView(view, viewSolve, viewer, common);
     } catch (const Error& e) {
         std::fprintf(stderr, "penumbra: error: %s\n", e.what());
         return 1;

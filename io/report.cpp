@@ -26,6 +26,21 @@ std::string orbitJson(const std::vector<Camera>& cameras, const std::vector<std:
     return nlohmann::json{{"views", views}}.dump(2) + "\n";
 }
 
+std::string summariseReport(const std::string& text) {
+    const nlohmann::json r = nlohmann::json::parse(text, nullptr, false);
+    if (r.is_discarded() || !r.contains("solver") || !r.contains("totals")) return "";
+    auto sum = [&](const char* key) {
+        double s = 0;
+        for (const auto& v : r["totals"][key]) s += v.get<double>();
+        return s;
+    };
+    const auto& solver = r["solver"];
+    return cat(solver.value("name", std::string("?")), ": ", solver.value("patches", 0), " patches, ",
+               solver.value("iterations", 0), " iterations, residual ", solver.value("residual", 0.0), "\n",
+               "emitted ", sum("emitted_power_w"), " W = absorbed ", sum("absorbed_power_w"), " W + escaped ",
+               sum("escaped_power_w"), " W");
+}
+
 std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemory) {
     using Json = nlohmann::json;
     const size_t objects = scene.objects.size();

@@ -13,6 +13,10 @@ namespace penumbra {
 // that `render --camera` takes it as it is).
 std::string orbitJson(const std::vector<Camera>& cameras, const std::vector<std::string>& images, double unitScale);
 
+// A few lines for the viewer's panel from a report.json text (patches, iterations, residual, power
+// balance); empty if the text is not a report.
+std::string summariseReport(const std::string& reportText);
+
 std::string reportJson(const Scene& scene, const SolveResult& result, double peakMemoryBytes);
 std::string convergenceCsv(const SolveResult& result);
 

@@ -11,6 +11,7 @@ PACKAGES=(
   cmake ninja-build g++ pkg-config python3
   libembree-dev libeigen3-dev libopenimageio-dev openimageio-tools libopenmesh-dev
   libtbb-dev nlohmann-json3-dev libcli11-dev libgtest-dev libnanoflann-dev libtinygltf-dev
+  libglfw3-dev libimgui-dev libgl-dev libegl-dev libgl1-mesa-dri xvfb xauth
 )
 
 install_missing() {

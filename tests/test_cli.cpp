@@ -248,3 +248,43 @@ TEST(Cli, OrbitViewsDifferAndEachMatchesARenderOfItsCamera) {
         EXPECT_LT(e.rmse, 1e-6) << "view " << k;
     }
 }
+
+TEST(Viewer, ScreenshotUnderXvfbMatchesTheHeadlessRadiosityView) {
+    // Xvfb and Mesa's software OpenGL come with the set-up; without them this fails, loudly.
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
+    const std::string out = test::tempDir() + "/viewer";
+    fs::remove_all(out);
+    ASSERT_EQ(run(cat("solve ", scene, " --out ", out, "/solve --patches 400 --quiet")).status, 0);
+    const std::string size = " --resolution 160x120";
+    const CommandResult headless = run(cat("render ", scene, " --solution ", out, "/solve --integrator radiosity", size,
+                                           " --spp 16 --out ", out, "/headless.exr --quiet"));
+    ASSERT_EQ(headless.status, 0) << headless.output;
+    // The window's GL driver is not ours to leak-check.
+    const std::string command = cat("ASAN_OPTIONS=detect_leaks=0 xvfb-run -a -s '-screen 0 640x480x24' ", PENUMBRA_EXE,
+                                    " view ", scene, " --solution ", out, "/solve", size, " --screenshot ", out,
+                                    "/shot.png --frames 3 2>&1");
+    const int status = std::system(command.c_str());
+    ASSERT_EQ(status, 0) << command;
+    ASSERT_TRUE(fs::exists(out + "/shot.png"));
+    // Both tone-mapped the same way (the previews' automatic exposure, sRGB), compared as 8-bit.
+    const Image shot = readLinearImage(out + "/shot.png"), view = readLinearImage(out + "/headless.png");
+    ASSERT_EQ(shot.width, 160);
+    ASSERT_EQ(shot.height, 120);
+    const ImageError e = compareImages(shot, view);
+    std::printf("viewer screenshot vs headless radiosity view: mean relative error %.4f\n", e.meanRelative);
+    EXPECT_LT(e.meanRelative, 0.05);
+}
+
+TEST(Viewer, WithoutADisplayItSaysSoAndPointsToTheHeadlessForms) {
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
+    const std::string command = cat("env -u DISPLAY -u WAYLAND_DISPLAY ", PENUMBRA_EXE, " view ", scene,
+                                    " --patches 50 --quiet 2>&1");
+    FILE* pipe = popen(command.c_str(), "r");
+    std::string output;
+    char buffer[4096];
+    while (size_t n = fread(buffer, 1, sizeof buffer, pipe)) output.append(buffer, n);
+    const int status = pclose(pipe);
+    EXPECT_NE(status, 0);
+    EXPECT_NE(output.find("no display"), std::string::npos) << output;
+    EXPECT_NE(output.find("--integrator radiosity"), std::string::npos) << output;
+}

@@ -1,0 +1,397 @@
+#include "viewer/viewer.h"
+
+#define GL_GLEXT_PROTOTYPES
+#define GLFW_INCLUDE_GLEXT
+#include <GLFW/glfw3.h>
+#include <backends/imgui_impl_glfw.h>
+#include <backends/imgui_impl_opengl3.h>
+#include <imgui.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "io/export.h"
+#include "io/image_io.h"
+
+namespace penumbra {
+namespace {
+
+const char* kSceneVertex = R"(#version 330 core
+layout(location = 0) in vec3 position;
+layout(location = 1) in vec3 radiance;
+uniform mat4 viewProjection;
+out vec3 vRadiance;
+void main() { vRadiance = radiance; gl_Position = viewProjection * vec4(position, 1.0); })";
+
+// Linear radiance into a float target; back faces are black (the contract's rule); edges flat.
+const char* kSceneFragment = R"(#version 330 core
+in vec3 vRadiance;
+uniform int edges;
+out vec4 colour;
+void main() {
+    if (edges == 1) { colour = vec4(0.0, 0.0, 0.0, 1.0); return; }
+    colour = gl_FrontFacing ? vec4(vRadiance, 1.0) : vec4(0.0, 0.0, 0.0, 1.0);
+})";
+
+// The float image, tone-mapped as the PNG previews are: clamp(scale * L), then sRGB.
+const char* kDisplayVertex = R"(#version 330 core
+out vec2 uv;
+void main() {
+    vec2 p = vec2((gl_VertexID == 1) ? 3.0 : -1.0, (gl_VertexID == 2) ? 3.0 : -1.0);
+    uv = 0.5 * (p + 1.0);
+    gl_Position = vec4(p, 0.0, 1.0);
+})";
+const char* kDisplayFragment = R"(#version 330 core
+in vec2 uv;
+uniform sampler2D image;
+uniform float scale;
+out vec4 colour;
+vec3 srgb(vec3 v) {
+    v = clamp(v, 0.0, 1.0);
+    return mix(12.92 * v, 1.055 * pow(v, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), v));
+}
+void main() { colour = vec4(srgb(scale * texture(image, uv).rgb), 1.0); })";
+
+GLuint compile(GLenum type, const char* source) {
+    const GLuint s = glCreateShader(type);
+    glShaderSource(s, 1, &source, nullptr);
+    glCompileShader(s);
+    GLint ok = 0;
+    glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+        char log[2048];
+        glGetShaderInfoLog(s, sizeof log, nullptr, log);
+        throw Error(cat("view: the OpenGL driver rejected a shader: ", log));
+    }
+    return s;
+}
+
+GLuint program(const char* vertex, const char* fragment) {
+    const GLuint p = glCreateProgram();
+    glAttachShader(p, compile(GL_VERTEX_SHADER, vertex));
+    glAttachShader(p, compile(GL_FRAGMENT_SHADER, fragment));
+    glLinkProgram(p);
+    GLint ok = 0;
+    glGetProgramiv(p, GL_LINK_STATUS, &ok);
+    if (!ok) throw Error("view: the OpenGL driver could not link a shader program");
+    return p;
+}
+
+Eigen::Matrix4f viewProjection(const Camera& c, int width, int height, double sceneSize) {
+    const Vec3 f = (c.lookAt - c.position).normalized();
+    const Vec3 s = f.cross(c.up).normalized();
+    const Vec3 u = s.cross(f);
+    Eigen::Matrix4d view = Eigen::Matrix4d::Identity();
+    view.row(0) << s.x(), s.y(), s.z(), -s.dot(c.position);
+    view.row(1) << u.x(), u.y(), u.z(), -u.dot(c.position);
+    view.row(2) << -f.x(), -f.y(), -f.z(), f.dot(c.position);
+    const double near = 1e-3 * sceneSize, far = 20 * sceneSize + (c.position - c.lookAt).norm() * 4;
+    const double t = 1 / std::tan(c.fovYDeg * kPi / 360), aspect = double(width) / height;
+    Eigen::Matrix4d projection = Eigen::Matrix4d::Zero();
+    projection(0, 0) = t / aspect;
+    projection(1, 1) = t;
+    projection(2, 2) = (far + near) / (near - far);
+    projection(2, 3) = 2 * far * near / (near - far);
+    projection(3, 2) = -1;
+    return (projection * view).cast<float>();
+}
+
+// Mouse and keyboard navigation about a target point (orbit, pan, zoom) or from the eye (fly).
+struct Navigation {
+    Camera camera, start;
+    bool fly = false, edges = false;
+    double lastX = 0, lastY = 0;
+    bool dragging = false;
+
+    // Turns `moved` about `pivot`: the eye about the target (orbit) or the target about the eye (fly).
+    void rotateAbout(const Vec3& pivot, Vec3& moved, double yaw, double pitch, bool orbit) {
+        const Vec3 up = start.up.normalized();
+        const Vec3 forward = (camera.lookAt - camera.position).normalized();
+        const Vec3 right = forward.cross(up).normalized();
+        const Eigen::AngleAxisd turn(yaw, up), tilt(pitch, right);
+        Vec3 offset = tilt * (turn * (moved - pivot));
+        // Keep away from the poles, where up and the view direction would align.
+        const Vec3 dir = orbit ? Vec3(-offset.normalized()) : Vec3(offset.normalized());
+        if (std::abs(dir.dot(up)) > 0.995) offset = turn * (moved - pivot);
+        moved = pivot + offset;
+    }
+    void mouse(double x, double y, int button, double sceneSize) {
+        const double dx = x - lastX, dy = y - lastY;
+        lastX = x, lastY = y;
+        if (!dragging) return;
+        const Vec3 forward = camera.lookAt - camera.position;
+        const Vec3 right = forward.normalized().cross(start.up).normalized();
+        const Vec3 up = right.cross(forward.normalized());
+        if (fly || button == GLFW_MOUSE_BUTTON_LEFT) {
+            if (fly)
+                rotateAbout(camera.position, camera.lookAt, -0.004 * dx, -0.004 * dy, false);
+            else
+                rotateAbout(camera.lookAt, camera.position, -0.006 * dx, -0.006 * dy, true);
+        } else {
+            const double scale = std::max(forward.norm(), 1e-3 * sceneSize) * 0.0015;
+            const Vec3 shift = (-dx * right + dy * up) * scale;
+            camera.position += shift;
+            camera.lookAt += shift;
+        }
+    }
+    void zoom(double steps) {
+        const Vec3 d = camera.position - camera.lookAt;
+        camera.position = camera.lookAt + d * std::pow(0.9, steps);
+    }
+    void move(GLFWwindow* w, double seconds, double sceneSize) {
+        if (!fly) return;
+        const Vec3 forward = (camera.lookAt - camera.position).normalized();
+        const Vec3 right = forward.cross(start.up).normalized();
+        Vec3 step = Vec3::Zero();
+        if (glfwGetKey(w, GLFW_KEY_W) == GLFW_PRESS) step += forward;
+        if (glfwGetKey(w, GLFW_KEY_S) == GLFW_PRESS) step -= forward;
+        if (glfwGetKey(w, GLFW_KEY_D) == GLFW_PRESS) step += right;
+        if (glfwGetKey(w, GLFW_KEY_A) == GLFW_PRESS) step -= right;
+        step *= 0.4 * sceneSize * seconds;
+        camera.position += step;
+        camera.lookAt += step;
+    }
+};
+
+// Key presses as events (down now, up at the last look).
+struct Keys {
+    std::map<int, bool> down;
+    bool pressed(GLFWwindow* w, int key) {
+        const bool now = glfwGetKey(w, key) == GLFW_PRESS;
+        const bool was = down[key];
+        down[key] = now;
+        return now && !was;
+    }
+};
+
+std::string cameraJson(const Camera& c, double unitScale) {
+    auto p = [&](const Vec3& v) { return cat("[", v.x() / unitScale, ", ", v.y() / unitScale, ", ", v.z() / unitScale, "]"); };
+    return cat("{\"position\": ", p(c.position), ", \"look_at\": ", p(c.lookAt), ", \"up\": [", c.up.x(), ", ", c.up.y(),
+               ", ", c.up.z(), "], \"fov_y_deg\": ", c.fovYDeg, ", \"resolution\": [", c.width, ", ", c.height, "]}");
+}
+
+}  // namespace
+
+void requireDisplay() {
+    const char* x11 = std::getenv("DISPLAY");
+    const char* wayland = std::getenv("WAYLAND_DISPLAY");
+    if ((!x11 || !*x11) && (!wayland || !*wayland))
+        throw Error("view: no display to open a window on (DISPLAY is not set). Headless: `penumbra render SCENE "
+                    "--solution DIR --integrator radiosity --out IMAGE.exr` (any --camera, or --orbit N), `penumbra "
+                    "export DIR --out FILE.glb`, or run the viewer under `xvfb-run -a`");
+}
+
+void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity, const Camera& start,
+               const ViewerOptions& options) {
+    requireDisplay();
+    if (!glfwInit()) throw Error("view: GLFW could not start (no usable display)");
+    struct Terminate {
+        ~Terminate() { glfwTerminate(); }
+    } terminate;
+    glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
+    glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
+    glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+    glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+    const bool screenshot = !options.screenshot.empty();
+    if (screenshot) glfwWindowHint(GLFW_RESIZABLE, GLFW_FALSE);
+    GLFWwindow* window = glfwCreateWindow(start.width, start.height, "penumbra", nullptr, nullptr);
+    if (!window) throw Error("view: no OpenGL 3.3 core context could be created on this display");
+    glfwMakeContextCurrent(window);
+    glfwSwapInterval(screenshot ? 0 : 1);
+
+    // Geometry: the export's mesh (patch corners with their interpolated radiance).
+    const ExportMesh mesh = exportMesh(patches, radiosity);
+    std::vector<float> vertices;
+    for (size_t i = 0; i < mesh.positions.size(); ++i)
+        for (const double v : {mesh.positions[i].x(), mesh.positions[i].y(), mesh.positions[i].z(), mesh.radiance[i][0],
+                               mesh.radiance[i][1], mesh.radiance[i][2]})
+            vertices.push_back(float(v));
+    std::vector<unsigned> triangles, edges;
+    for (const auto& t : mesh.triangles)
+        for (int v : t) triangles.push_back(unsigned(v));
+    for (size_t i = 0, base = 0; i < patches.size(); base += patches.cornerCount[i], ++i)
+        for (unsigned k = 0; k < patches.cornerCount[i]; ++k) {
+            edges.push_back(unsigned(base) + k);
+            edges.push_back(unsigned(base) + (k + 1) % patches.cornerCount[i]);
+        }
+    GLuint vao = 0, buffers[3];
+    glGenVertexArrays(1, &vao);
+    glBindVertexArray(vao);
+    glGenBuffers(3, buffers);
+    glBindBuffer(GL_ARRAY_BUFFER, buffers[0]);
+    glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(vertices.size() * sizeof(float)), vertices.data(), GL_STATIC_DRAW);
+    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), nullptr);
+    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), reinterpret_cast<void*>(3 * sizeof(float)));
+    glEnableVertexAttribArray(0);
+    glEnableVertexAttribArray(1);
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, buffers[1]);
+    glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(triangles.size() * sizeof(unsigned)), triangles.data(), GL_STATIC_DRAW);
+    GLuint edgeVao = 0;
+    glGenVertexArrays(1, &edgeVao);
+    glBindVertexArray(edgeVao);
+    glBindBuffer(GL_ARRAY_BUFFER, buffers[0]);
+    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), nullptr);
+    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), reinterpret_cast<void*>(3 * sizeof(float)));
+    glEnableVertexAttribArray(0);
+    glEnableVertexAttribArray(1);
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, buffers[2]);
+    glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(edges.size() * sizeof(unsigned)), edges.data(), GL_STATIC_DRAW);
+    GLuint display = 0;
+    glGenVertexArrays(1, &display);
+    const GLuint sceneProgram = program(kSceneVertex, kSceneFragment);
+    const GLuint displayProgram = program(kDisplayVertex, kDisplayFragment);
+
+    // The float target the scene is drawn into (linear radiance), resized with the window.
+    GLuint fbo = 0, colour = 0, depth = 0;
+    int targetWidth = 0, targetHeight = 0;
+    auto resizeTarget = [&](int w, int h) {
+        if (w == targetWidth && h == targetHeight) return;
+        if (fbo) {
+            glDeleteFramebuffers(1, &fbo);
+            glDeleteTextures(1, &colour);
+            glDeleteRenderbuffers(1, &depth);
+        }
+        glGenFramebuffers(1, &fbo);
+        glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+        glGenTextures(1, &colour);
+        glBindTexture(GL_TEXTURE_2D, colour);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, w, h, 0, GL_RGBA, GL_FLOAT, nullptr);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, colour, 0);
+        glGenRenderbuffers(1, &depth);
+        glBindRenderbuffer(GL_RENDERBUFFER, depth);
+        glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, w, h);
+        glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth);
+        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+            throw Error("view: the OpenGL driver has no float render target");
+        targetWidth = w, targetHeight = h;
+    };
+
+    IMGUI_CHECKVERSION();
+    ImGui::CreateContext();
+    ImGui::GetIO().IniFilename = nullptr;
+    ImGui_ImplGlfw_InitForOpenGL(window, true);
+    ImGui_ImplOpenGL3_Init("#version 330");
+
+    Navigation nav;
+    nav.camera = nav.start = start;
+    double sceneSize = 0;
+    {
+        Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+        for (const Vec3& p : mesh.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+        sceneSize = mesh.positions.empty() ? 1.0 : std::max((hi - lo).norm(), 1e-6);
+    }
+    float stops = float(options.exposureStops);
+    const double autoScale = exportExposure(mesh, 0);
+    double lastTime = glfwGetTime();
+    Keys keys;
+    if (!screenshot)
+        logInfo("view: left drag orbits, right drag pans, wheel zooms, F toggles fly mode (WASD + mouse), E edges, "
+                "R resets, P prints the camera, +/- exposure, Esc quits");
+
+    for (int frame = 0; !glfwWindowShouldClose(window); ++frame) {
+        glfwPollEvents();
+        const double now = glfwGetTime();
+        ImGui_ImplOpenGL3_NewFrame();
+        ImGui_ImplGlfw_NewFrame();
+        ImGui::NewFrame();
+        const ImGuiIO& io = ImGui::GetIO();
+        if (!screenshot) {
+            double x = 0, y = 0;
+            glfwGetCursorPos(window, &x, &y);
+            const bool left = glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+            const bool right = glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS ||
+                               glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS;
+            nav.dragging = (left || right) && !io.WantCaptureMouse;
+            nav.mouse(x, y, left ? GLFW_MOUSE_BUTTON_LEFT : GLFW_MOUSE_BUTTON_RIGHT, sceneSize);
+            if (!io.WantCaptureMouse && io.MouseWheel != 0) nav.zoom(io.MouseWheel);
+            if (!io.WantCaptureKeyboard) {
+                nav.move(window, now - lastTime, sceneSize);
+                if (keys.pressed(window, GLFW_KEY_F)) nav.fly = !nav.fly;
+                if (keys.pressed(window, GLFW_KEY_E)) nav.edges = !nav.edges;
+                if (keys.pressed(window, GLFW_KEY_R)) nav.camera = nav.start;
+                if (keys.pressed(window, GLFW_KEY_P)) std::printf("%s\n", cameraJson(nav.camera, scene.unitScale).c_str());
+                if (keys.pressed(window, GLFW_KEY_EQUAL) || keys.pressed(window, GLFW_KEY_KP_ADD)) stops += 0.5f;
+                if (keys.pressed(window, GLFW_KEY_MINUS) || keys.pressed(window, GLFW_KEY_KP_SUBTRACT)) stops -= 0.5f;
+                if (keys.pressed(window, GLFW_KEY_ESCAPE)) glfwSetWindowShouldClose(window, GLFW_TRUE);
+            }
+            ImGui::Begin("penumbra");
+            ImGui::TextUnformatted(options.statistics.c_str());
+            ImGui::Text("%zu patches, %zu triangles", patches.size(), mesh.triangles.size());
+            ImGui::SliderFloat("exposure (stops)", &stops, -10.0f, 10.0f);
+            ImGui::Checkbox("patch edges (E)", &nav.edges);
+            ImGui::Checkbox("fly mode (F, WASD)", &nav.fly);
+            if (ImGui::Button("reset view (R)")) nav.camera = nav.start;
+            ImGui::SameLine();
+            if (ImGui::Button("print camera (P)")) std::printf("%s\n", cameraJson(nav.camera, scene.unitScale).c_str());
+            ImGui::End();
+        }
+        lastTime = now;
+
+        int width = 0, height = 0;
+        glfwGetFramebufferSize(window, &width, &height);
+        if (width <= 0 || height <= 0) continue;
+        resizeTarget(width, height);
+        Camera view = nav.camera;
+        view.width = width, view.height = height;
+        const Eigen::Matrix4f vp = viewProjection(view, width, height, sceneSize);
+
+        glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+        glViewport(0, 0, width, height);
+        glClearColor(0, 0, 0, 1);
+        glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+        glEnable(GL_DEPTH_TEST);
+        glUseProgram(sceneProgram);
+        glUniformMatrix4fv(glGetUniformLocation(sceneProgram, "viewProjection"), 1, GL_FALSE, vp.data());
+        glUniform1i(glGetUniformLocation(sceneProgram, "edges"), 0);
+        glEnable(GL_POLYGON_OFFSET_FILL);
+        glPolygonOffset(1, 1);
+        glBindVertexArray(vao);
+        glDrawElements(GL_TRIANGLES, GLsizei(triangles.size()), GL_UNSIGNED_INT, nullptr);
+        glDisable(GL_POLYGON_OFFSET_FILL);
+        if (nav.edges) {
+            glUniform1i(glGetUniformLocation(sceneProgram, "edges"), 1);
+            glBindVertexArray(edgeVao);
+            glDrawElements(GL_LINES, GLsizei(edges.size()), GL_UNSIGNED_INT, nullptr);
+        }
+
+        if (screenshot && frame + 1 >= options.frames) {
+            std::vector<float> pixels(size_t(width) * size_t(height) * 4);
+            glReadPixels(0, 0, width, height, GL_RGBA, GL_FLOAT, pixels.data());
+            Image image(width, height);
+            for (int y = 0; y < height; ++y)
+                for (int x = 0; x < width; ++x) {
+                    const float* p = &pixels[4 * (size_t(height - 1 - y) * size_t(width) + size_t(x))];
+                    image.set(x, y, Rgb(p[0], p[1], p[2]));
+                }
+            writePreviewPng(image, options.screenshot, options.exposureStops);
+            logInfo("view: wrote ", options.screenshot, " (", width, "x", height, ", frame ", frame + 1, ")");
+            break;
+        }
+
+        glBindFramebuffer(GL_FRAMEBUFFER, 0);
+        glViewport(0, 0, width, height);
+        glDisable(GL_DEPTH_TEST);
+        glUseProgram(displayProgram);
+        glActiveTexture(GL_TEXTURE0);
+        glBindTexture(GL_TEXTURE_2D, colour);
+        glUniform1i(glGetUniformLocation(displayProgram, "image"), 0);
+        glUniform1f(glGetUniformLocation(displayProgram, "scale"), float(autoScale * std::pow(2.0, double(stops))));
+        glBindVertexArray(display);
+        glDrawArrays(GL_TRIANGLES, 0, 3);
+        ImGui::Render();
+        ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+        glfwSwapBuffers(window);
+    }
+    ImGui_ImplOpenGL3_Shutdown();
+    ImGui_ImplGlfw_Shutdown();
+    ImGui::DestroyContext();
+    glfwDestroyWindow(window);
+}
+
+}  // namespace penumbra

@@ -1,0 +1,29 @@
+// The interactive viewer (`penumbra view`): the solved radiosity as smooth per-vertex radiance on
+// the patches, rasterised with OpenGL 3.3 core in a GLFW window, with a Dear ImGui panel. Orbit,
+// pan, zoom and fly; exposure; patch edges; reset; the current camera printed as JSON. With
+// `screenshot` set it draws `frames` frames from the start camera at its resolution, saves the last
+// (tone-mapped like render's PNG previews) and returns.
+#pragma once
+
+#include <string>
+
+#include "mesh/patches.h"
+#include "mesh/scene.h"
+
+namespace penumbra {
+
+struct ViewerOptions {
+    std::string screenshot;   // PNG to save, then exit; empty: interactive
+    int frames = 3;           // frames drawn before the screenshot
+    double exposureStops = 0;
+    std::string statistics;   // text for the panel (the solve's report, summarised)
+};
+
+// Throws Error, pointing to the headless forms, when there is no display to open a window on.
+void requireDisplay();
+
+// `radiosity`: B per patch. Throws Error when no window can be opened (no display).
+void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity, const Camera& start,
+               const ViewerOptions& options);
+
+}  // namespace penumbra
