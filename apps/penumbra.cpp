@@ -331,6 +331,9 @@ int main(int argc, char** argv) {
                         "Draw --frames frames from the camera, save the last to this PNG and exit");
     viewCmd->add_option("--frames", viewer.frames, "Frames drawn before --screenshot")->capture_default_str()
         ->check(CLI::Range(1, 100000));
+    viewCmd->add_option("--gather-passes", viewer.gatherPasses,
+                        "With --screenshot: save the in-window final gather after this many passes instead")
+        ->check(CLI::Range(1, 1 << 20));
     addSolveOptions(viewCmd, viewSolve);
 
     for (CLI::App* cmd : {solveCmd, renderCmd, viewCmd, exportCmd}) {

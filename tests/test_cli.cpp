@@ -288,3 +288,23 @@ TEST(Viewer, WithoutADisplayItSaysSoAndPointsToTheHeadlessForms) {
     EXPECT_NE(output.find("no display"), std::string::npos) << output;
     EXPECT_NE(output.find("--integrator radiosity"), std::string::npos) << output;
 }
+
+TEST(Viewer, InWindowFinalGatherMatchesTheRenderOfTheSameView) {
+    // The progressive final gather the window shows on G, after 16 passes, against `render` at 16
+    // samples per pixel: the same picture up to noise (compared after a 5x5 blur, tone-mapped alike).
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
+    const std::string out = test::tempDir() + "/viewer-gather";
+    fs::remove_all(out);
+    ASSERT_EQ(run(cat("solve ", scene, " --out ", out, "/solve --patches 400 --quiet")).status, 0);
+    const std::string size = " --resolution 96x72";
+    const CommandResult render = run(cat("render ", scene, " --solution ", out, "/solve", size, " --spp 16 --out ", out,
+                                         "/render.exr --quiet"));
+    ASSERT_EQ(render.status, 0) << render.output;
+    const std::string command = cat("ASAN_OPTIONS=detect_leaks=0 xvfb-run -a -s '-screen 0 640x480x24' ", PENUMBRA_EXE,
+                                    " view ", scene, " --solution ", out, "/solve", size, " --screenshot ", out,
+                                    "/shot.png --gather-passes 16 --quiet 2>&1");
+    ASSERT_EQ(std::system(command.c_str()), 0) << command;
+    const ImageError e = compareBlurred(readLinearImage(out + "/shot.png"), readLinearImage(out + "/render.png"));
+    std::printf("in-window final gather vs render: blurred mean relative error %.4f\n", e.meanRelative);
+    EXPECT_LT(e.meanRelative, 0.05);
+}

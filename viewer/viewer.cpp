@@ -10,12 +10,18 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <atomic>
 #include <map>
+#include <memory>
+#include <mutex>
+#include <thread>
 
 #include "core/error.h"
 #include "core/log.h"
 #include "io/export.h"
 #include "io/image_io.h"
+#include "render/final_gather.h"
+#include "render/photon_map.h"
 
 namespace penumbra {
 namespace {
@@ -168,6 +174,72 @@ struct Keys {
     }
 };
 
+// The final-gather render of one view, refined one sample per pixel per pass on a worker thread
+// until cancelled; the main thread shows the running mean.
+class Progressive {
+public:
+    Progressive(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity)
+        : scene_(scene), patches_(patches), radiosity_(radiosity) {}
+    ~Progressive() { stop(); }
+
+    void start(const Camera& camera) {
+        stop();
+        if (!gather_) {
+            corners_ = interpolateCorners(patches_, radiosity_);
+            tracer_ = std::make_unique<SceneTracer>(scene_, patches_);
+            if (tracer_->hasSpecular()) photons_ = std::make_unique<PhotonMap>(*tracer_, PhotonSettings{});
+            gather_ = std::make_unique<FinalGather>(*tracer_, corners_, photons_.get(), GatherSettings{});
+        }
+        camera_ = camera;
+        cancel_ = false;
+        passes_ = 0;
+        sum_.assign(size_t(camera.width) * size_t(camera.height) * 3, 0.0);
+        worker_ = std::thread([this] {
+            for (uint64_t pass = 1; !cancel_; ++pass) {
+                const Image image = renderFinalGather(*gather_, camera_, 1, pass);
+                if (cancel_) break;
+                std::lock_guard<std::mutex> lock(mutex_);
+                for (size_t k = 0; k < sum_.size(); ++k) sum_[k] += image.rgb[k];
+                ++passes_;
+            }
+        });
+    }
+    void stop() {
+        cancel_ = true;
+        if (worker_.joinable()) worker_.join();
+    }
+    bool running() const { return worker_.joinable(); }
+    int passes() const { return passes_; }
+    // The mean so far, or an empty image before the first pass.
+    Image mean() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        Image image;
+        if (passes_ == 0) return image;
+        image = Image(camera_.width, camera_.height);
+        for (size_t k = 0; k < sum_.size(); ++k) image.rgb[k] = float(sum_[k] / passes_);
+        return image;
+    }
+
+private:
+    const Scene& scene_;
+    const PatchSet& patches_;
+    const std::vector<Rgb>& radiosity_;
+    std::vector<std::array<Rgb, 4>> corners_;
+    std::unique_ptr<SceneTracer> tracer_;
+    std::unique_ptr<PhotonMap> photons_;
+    std::unique_ptr<FinalGather> gather_;
+    Camera camera_;
+    std::thread worker_;
+    std::atomic<bool> cancel_{false};
+    std::atomic<int> passes_{0};
+    std::mutex mutex_;
+    std::vector<double> sum_;
+};
+
+bool sameView(const Camera& a, const Camera& b) {
+    return a.position == b.position && a.lookAt == b.lookAt && a.width == b.width && a.height == b.height;
+}
+
 std::string cameraJson(const Camera& c, double unitScale) {
     auto p = [&](const Vec3& v) { return cat("[", v.x() / unitScale, ", ", v.y() / unitScale, ", ", v.z() / unitScale, "]"); };
     return cat("{\"position\": ", p(c.position), ", \"look_at\": ", p(c.lookAt), ", \"up\": [", c.up.x(), ", ", c.up.y(),
@@ -279,6 +351,11 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
     ImGui_ImplOpenGL3_Init("#version 330");
 
     Navigation nav;
+    Progressive progressive(scene, patches, radiosity);
+    Camera progressiveView;
+    GLuint gatherTexture = 0;
+    glGenTextures(1, &gatherTexture);
+    int shownPasses = 0;
     nav.camera = nav.start = start;
     double sceneSize = 0;
     {
@@ -292,7 +369,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
     Keys keys;
     if (!screenshot)
         logInfo("view: left drag orbits, right drag pans, wheel zooms, F toggles fly mode (WASD + mouse), E edges, "
-                "R resets, P prints the camera, +/- exposure, Esc quits");
+                "R resets, P prints the camera, +/- exposure, G renders the final gather of the view, Esc quits");
 
     for (int frame = 0; !glfwWindowShouldClose(window); ++frame) {
         glfwPollEvents();
@@ -301,6 +378,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
         ImGui_ImplGlfw_NewFrame();
         ImGui::NewFrame();
         const ImGuiIO& io = ImGui::GetIO();
+        bool startGather = screenshot && options.gatherPasses > 0 && !progressive.running();
         if (!screenshot) {
             double x = 0, y = 0;
             glfwGetCursorPos(window, &x, &y);
@@ -319,6 +397,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
                 if (keys.pressed(window, GLFW_KEY_EQUAL) || keys.pressed(window, GLFW_KEY_KP_ADD)) stops += 0.5f;
                 if (keys.pressed(window, GLFW_KEY_MINUS) || keys.pressed(window, GLFW_KEY_KP_SUBTRACT)) stops -= 0.5f;
                 if (keys.pressed(window, GLFW_KEY_ESCAPE)) glfwSetWindowShouldClose(window, GLFW_TRUE);
+                if (keys.pressed(window, GLFW_KEY_G)) startGather = true;
             }
             ImGui::Begin("penumbra");
             ImGui::TextUnformatted(options.statistics.c_str());
@@ -329,17 +408,58 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
             if (ImGui::Button("reset view (R)")) nav.camera = nav.start;
             ImGui::SameLine();
             if (ImGui::Button("print camera (P)")) std::printf("%s\n", cameraJson(nav.camera, scene.unitScale).c_str());
+            if (ImGui::Button("final gather (G)")) startGather = true;
+            if (progressive.running()) ImGui::Text("final gather: %d passes (move to go back)", progressive.passes());
             ImGui::End();
         }
         lastTime = now;
 
         int width = 0, height = 0;
         glfwGetFramebufferSize(window, &width, &height);
-        if (width <= 0 || height <= 0) continue;
+        if (width <= 0 || height <= 0) {
+            ImGui::EndFrame();
+            continue;
+        }
         resizeTarget(width, height);
         Camera view = nav.camera;
         view.width = width, view.height = height;
         const Eigen::Matrix4f vp = viewProjection(view, width, height, sceneSize);
+        // The progressive final gather: started on G, dropped as soon as the camera moves.
+        if (startGather) {
+            progressive.start(view);
+            progressiveView = view;
+            shownPasses = 0;
+        } else if (progressive.running() && !sameView(view, progressiveView)) {
+            progressive.stop();
+        }
+        const bool showGather = progressive.running() && progressive.passes() > 0;
+        if (showGather && progressive.passes() != shownPasses) {
+            const Image mean = progressive.mean();
+            shownPasses = progressive.passes();
+            glBindTexture(GL_TEXTURE_2D, gatherTexture);
+            glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+            glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+            // Image rows run from the top; texture rows from the bottom.
+            std::vector<float> rows(mean.rgb.size());
+            const size_t stride = size_t(mean.width) * 3;
+            for (int y = 0; y < mean.height; ++y)
+                std::copy_n(&mean.rgb[size_t(y) * stride], stride, &rows[size_t(mean.height - 1 - y) * stride]);
+            glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, mean.width, mean.height, 0, GL_RGB, GL_FLOAT, rows.data());
+        }
+        if (screenshot && options.gatherPasses > 0) {
+            if (progressive.passes() < options.gatherPasses) {
+                ImGui::EndFrame();
+                glfwWaitEventsTimeout(0.01);
+                --frame;
+                continue;
+            }
+            progressive.stop();
+            writePreviewPng(progressive.mean(), options.screenshot, options.exposureStops);
+            logInfo("view: wrote ", options.screenshot, " (", width, "x", height, ", final gather, ",
+                    progressive.passes(), " passes)");
+            ImGui::EndFrame();
+            break;
+        }
 
         glBindFramebuffer(GL_FRAMEBUFFER, fbo);
         glViewport(0, 0, width, height);
@@ -371,6 +491,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
                 }
             writePreviewPng(image, options.screenshot, options.exposureStops);
             logInfo("view: wrote ", options.screenshot, " (", width, "x", height, ", frame ", frame + 1, ")");
+            ImGui::EndFrame();
             break;
         }
 
@@ -379,7 +500,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
         glDisable(GL_DEPTH_TEST);
         glUseProgram(displayProgram);
         glActiveTexture(GL_TEXTURE0);
-        glBindTexture(GL_TEXTURE_2D, colour);
+        glBindTexture(GL_TEXTURE_2D, showGather ? gatherTexture : colour);
         glUniform1i(glGetUniformLocation(displayProgram, "image"), 0);
         glUniform1f(glGetUniformLocation(displayProgram, "scale"), float(autoScale * std::pow(2.0, double(stops))));
         glBindVertexArray(display);
@@ -388,6 +509,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
         ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
         glfwSwapBuffers(window);
     }
+    progressive.stop();
     ImGui_ImplOpenGL3_Shutdown();
     ImGui_ImplGlfw_Shutdown();
     ImGui::DestroyContext();

@@ -1,6 +1,7 @@
 // The interactive viewer (`penumbra view`): the solved radiosity as smooth per-vertex radiance on
 // the patches, rasterised with OpenGL 3.3 core in a GLFW window, with a Dear ImGui panel. Orbit,
-// pan, zoom and fly; exposure; patch edges; reset; the current camera printed as JSON. With
+// pan, zoom and fly; exposure; patch edges; reset; the current camera printed as JSON; on G, the
+// final-gather render of the current view, refined pass by pass while the camera rests. With
 // `screenshot` set it draws `frames` frames from the start camera at its resolution, saves the last
 // (tone-mapped like render's PNG previews) and returns.
 #pragma once
@@ -17,6 +18,7 @@ struct ViewerOptions {
     int frames = 3;           // frames drawn before the screenshot
     double exposureStops = 0;
     std::string statistics;   // text for the panel (the solve's report, summarised)
+    int gatherPasses = 0;     // with `screenshot`: save the progressive final gather after this many passes
 };
 
 // Throws Error, pointing to the headless forms, when there is no display to open a window on.
