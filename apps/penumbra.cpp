@@ -334,6 +334,8 @@ int main(int argc, char** argv) {
     viewCmd->add_option("--gather-passes", viewer.gatherPasses,
                         "With --screenshot: save the in-window final gather after this many passes instead")
         ->check(CLI::Range(1, 1 << 20));
+    viewCmd->add_flag("--screenshot-window", viewer.wholeWindow,
+                      "With --screenshot: save the window as shown, panel included");
     addSolveOptions(viewCmd, viewSolve);
 
     for (CLI::App* cmd : {solveCmd, renderCmd, viewCmd, exportCmd}) {

@@ -70,6 +70,10 @@ void writePreviewPng(const Image& image, const std::string& path, double exposur
     writeWith(path, image.width, image.height, OIIO::TypeDesc::UINT8, pixels.data());
 }
 
+void writeRgb8(const std::string& path, int width, int height, const std::vector<unsigned char>& rgb) {
+    writeWith(path, width, height, OIIO::TypeDesc::UINT8, rgb.data());
+}
+
 std::string previewPathFor(const std::string& linearPath) {
     return std::filesystem::path(linearPath).replace_extension(".png").string();
 }

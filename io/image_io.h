@@ -17,6 +17,9 @@ Image readLinearImage(const std::string& path);
 // log-average luminance at middle grey) by that many stops.
 void writePreviewPng(const Image& image, const std::string& path, double exposureStops = 0);
 
+// Writes 8-bit RGB pixels (rows from the top) as they are, e.g. a window's contents.
+void writeRgb8(const std::string& path, int width, int height, const std::vector<unsigned char>& rgb);
+
 // The preview's exposure: the factor that puts the log-average of the positive luminances at middle
 // grey (0.18), shifted by `stops`.
 double exposureScale(const std::vector<double>& luminances, double stops);

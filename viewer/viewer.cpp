@@ -379,7 +379,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
         ImGui::NewFrame();
         const ImGuiIO& io = ImGui::GetIO();
         bool startGather = screenshot && options.gatherPasses > 0 && !progressive.running();
-        if (!screenshot) {
+        if (!screenshot || options.wholeWindow) {
             double x = 0, y = 0;
             glfwGetCursorPos(window, &x, &y);
             const bool left = glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
@@ -399,7 +399,8 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
                 if (keys.pressed(window, GLFW_KEY_ESCAPE)) glfwSetWindowShouldClose(window, GLFW_TRUE);
                 if (keys.pressed(window, GLFW_KEY_G)) startGather = true;
             }
-            ImGui::Begin("penumbra");
+            ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
+            ImGui::Begin("penumbra", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
             ImGui::TextUnformatted(options.statistics.c_str());
             ImGui::Text("%zu patches, %zu triangles", patches.size(), mesh.triangles.size());
             ImGui::SliderFloat("exposure (stops)", &stops, -10.0f, 10.0f);
@@ -446,7 +447,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
                 std::copy_n(&mean.rgb[size_t(y) * stride], stride, &rows[size_t(mean.height - 1 - y) * stride]);
             glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, mean.width, mean.height, 0, GL_RGB, GL_FLOAT, rows.data());
         }
-        if (screenshot && options.gatherPasses > 0) {
+        if (screenshot && options.gatherPasses > 0 && !options.wholeWindow) {
             if (progressive.passes() < options.gatherPasses) {
                 ImGui::EndFrame();
                 glfwWaitEventsTimeout(0.01);
@@ -480,7 +481,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
             glDrawElements(GL_LINES, GLsizei(edges.size()), GL_UNSIGNED_INT, nullptr);
         }
 
-        if (screenshot && frame + 1 >= options.frames) {
+        if (screenshot && !options.wholeWindow && frame + 1 >= options.frames) {
             std::vector<float> pixels(size_t(width) * size_t(height) * 4);
             glReadPixels(0, 0, width, height, GL_RGBA, GL_FLOAT, pixels.data());
             Image image(width, height);
@@ -507,6 +508,19 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
         glDrawArrays(GL_TRIANGLES, 0, 3);
         ImGui::Render();
         ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+        if (screenshot && options.wholeWindow && frame + 1 >= options.frames &&
+            progressive.passes() >= options.gatherPasses) {
+            std::vector<unsigned char> pixels(size_t(width) * size_t(height) * 3), rows(pixels.size());
+            glPixelStorei(GL_PACK_ALIGNMENT, 1);
+            glReadBuffer(GL_BACK);
+            glReadPixels(0, 0, width, height, GL_RGB, GL_UNSIGNED_BYTE, pixels.data());
+            const size_t stride = size_t(width) * 3;
+            for (int y = 0; y < height; ++y)
+                std::copy_n(&pixels[size_t(height - 1 - y) * stride], stride, &rows[size_t(y) * stride]);
+            writeRgb8(options.screenshot, width, height, rows);
+            logInfo("view: wrote the window to ", options.screenshot, " (", width, "x", height, ")");
+            break;
+        }
         glfwSwapBuffers(window);
     }
     progressive.stop();

@@ -19,6 +19,7 @@ struct ViewerOptions {
     double exposureStops = 0;
     std::string statistics;   // text for the panel (the solve's report, summarised)
     int gatherPasses = 0;     // with `screenshot`: save the progressive final gather after this many passes
+    bool wholeWindow = false; // with `screenshot`: the window as shown (panel included), not the picture alone
 };
 
 // Throws Error, pointing to the headless forms, when there is no display to open a window on.
