@@ -249,22 +249,33 @@ TEST(Cli, OrbitViewsDifferAndEachMatchesARenderOfItsCamera) {
     }
 }
 
+namespace {
+// Solves the Cornell box (400 patches) into OUT/solve for the viewer tests.
+void solveCornellInto(const std::string& out) {
+    fs::remove_all(out);
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
+    ASSERT_EQ(run(cat("solve ", scene, " --out ", out, "/solve --patches 400 --quiet")).status, 0);
+}
+// `penumbra view` of that solve under a virtual display. The window's GL driver is not ours to
+// leak-check, hence detect_leaks=0 under the sanitizers.
+int viewUnderXvfb(const std::string& out, const std::string& options) {
+    const std::string command = cat("ASAN_OPTIONS=detect_leaks=0 xvfb-run -a -s '-screen 0 640x480x24' ", PENUMBRA_EXE,
+                                    " view ", PENUMBRA_SOURCE_DIR, "/scenes/cornell-box.json --solution ", out,
+                                    "/solve ", options, " --quiet 2>&1");
+    return std::system(command.c_str());
+}
+}  // namespace
+
 TEST(Viewer, ScreenshotUnderXvfbMatchesTheHeadlessRadiosityView) {
     // Xvfb and Mesa's software OpenGL come with the set-up; without them this fails, loudly.
     const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
     const std::string out = test::tempDir() + "/viewer";
-    fs::remove_all(out);
-    ASSERT_EQ(run(cat("solve ", scene, " --out ", out, "/solve --patches 400 --quiet")).status, 0);
+    solveCornellInto(out);
     const std::string size = " --resolution 160x120";
     const CommandResult headless = run(cat("render ", scene, " --solution ", out, "/solve --integrator radiosity", size,
                                            " --spp 16 --out ", out, "/headless.exr --quiet"));
     ASSERT_EQ(headless.status, 0) << headless.output;
-    // The window's GL driver is not ours to leak-check.
-    const std::string command = cat("ASAN_OPTIONS=detect_leaks=0 xvfb-run -a -s '-screen 0 640x480x24' ", PENUMBRA_EXE,
-                                    " view ", scene, " --solution ", out, "/solve", size, " --screenshot ", out,
-                                    "/shot.png --frames 3 2>&1");
-    const int status = std::system(command.c_str());
-    ASSERT_EQ(status, 0) << command;
+    ASSERT_EQ(viewUnderXvfb(out, cat(size, " --screenshot ", out, "/shot.png --frames 3")), 0);
     ASSERT_TRUE(fs::exists(out + "/shot.png"));
     // Both tone-mapped the same way (the previews' automatic exposure, sRGB), compared as 8-bit.
     const Image shot = readLinearImage(out + "/shot.png"), view = readLinearImage(out + "/headless.png");
@@ -294,16 +305,12 @@ TEST(Viewer, InWindowFinalGatherMatchesTheRenderOfTheSameView) {
     // samples per pixel: the same picture up to noise (compared after a 5x5 blur, tone-mapped alike).
     const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
     const std::string out = test::tempDir() + "/viewer-gather";
-    fs::remove_all(out);
-    ASSERT_EQ(run(cat("solve ", scene, " --out ", out, "/solve --patches 400 --quiet")).status, 0);
+    solveCornellInto(out);
     const std::string size = " --resolution 96x72";
     const CommandResult render = run(cat("render ", scene, " --solution ", out, "/solve", size, " --spp 16 --out ", out,
                                          "/render.exr --quiet"));
     ASSERT_EQ(render.status, 0) << render.output;
-    const std::string command = cat("ASAN_OPTIONS=detect_leaks=0 xvfb-run -a -s '-screen 0 640x480x24' ", PENUMBRA_EXE,
-                                    " view ", scene, " --solution ", out, "/solve", size, " --screenshot ", out,
-                                    "/shot.png --gather-passes 16 --quiet 2>&1");
-    ASSERT_EQ(std::system(command.c_str()), 0) << command;
+    ASSERT_EQ(viewUnderXvfb(out, cat(size, " --screenshot ", out, "/shot.png --gather-passes 16")), 0);
     const ImageError e = compareBlurred(readLinearImage(out + "/shot.png"), readLinearImage(out + "/render.png"));
     std::printf("in-window final gather vs render: blurred mean relative error %.4f\n", e.meanRelative);
     EXPECT_LT(e.meanRelative, 0.05);

@@ -43,7 +43,8 @@ void main() {
     colour = gl_FrontFacing ? vec4(vRadiance, 1.0) : vec4(0.0, 0.0, 0.0, 1.0);
 })";
 
-// The float image, tone-mapped as the PNG previews are: clamp(scale * L), then sRGB.
+// The float image, tone-mapped as the PNG previews are (clamp(scale * L), then sRGB), or by
+// Reinhard's operator on luminance.
 const char* kDisplayVertex = R"(#version 330 core
 out vec2 uv;
 void main() {
@@ -55,12 +56,21 @@ const char* kDisplayFragment = R"(#version 330 core
 in vec2 uv;
 uniform sampler2D image;
 uniform float scale;
+uniform int reinhard;
 out vec4 colour;
 vec3 srgb(vec3 v) {
     v = clamp(v, 0.0, 1.0);
     return mix(12.92 * v, 1.055 * pow(v, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), v));
 }
-void main() { colour = vec4(srgb(scale * texture(image, uv).rgb), 1.0); })";
+void main() {
+    vec3 v = scale * texture(image, uv).rgb;
+    // Reinhard on luminance keeps highlights from clipping; the default clamps like the previews.
+    if (reinhard == 1) {
+        float l = dot(v, vec3(0.2126, 0.7152, 0.0722));
+        v *= 1.0 / (1.0 + l);
+    }
+    colour = vec4(srgb(v), 1.0);
+})";
 
 GLuint compile(GLenum type, const char* source) {
     const GLuint s = glCreateShader(type);
@@ -290,28 +300,26 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
             edges.push_back(unsigned(base) + k);
             edges.push_back(unsigned(base) + (k + 1) % patches.cornerCount[i]);
         }
-    GLuint vao = 0, buffers[3];
-    glGenVertexArrays(1, &vao);
-    glBindVertexArray(vao);
-    glGenBuffers(3, buffers);
-    glBindBuffer(GL_ARRAY_BUFFER, buffers[0]);
+    // One vertex buffer (position, radiance), drawn as triangles or as patch outlines.
+    GLuint vertexBuffer = 0;
+    glGenBuffers(1, &vertexBuffer);
+    glBindBuffer(GL_ARRAY_BUFFER, vertexBuffer);
     glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(vertices.size() * sizeof(float)), vertices.data(), GL_STATIC_DRAW);
-    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), nullptr);
-    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), reinterpret_cast<void*>(3 * sizeof(float)));
-    glEnableVertexAttribArray(0);
-    glEnableVertexAttribArray(1);
-    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, buffers[1]);
-    glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(triangles.size() * sizeof(unsigned)), triangles.data(), GL_STATIC_DRAW);
-    GLuint edgeVao = 0;
-    glGenVertexArrays(1, &edgeVao);
-    glBindVertexArray(edgeVao);
-    glBindBuffer(GL_ARRAY_BUFFER, buffers[0]);
-    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), nullptr);
-    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), reinterpret_cast<void*>(3 * sizeof(float)));
-    glEnableVertexAttribArray(0);
-    glEnableVertexAttribArray(1);
-    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, buffers[2]);
-    glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(edges.size() * sizeof(unsigned)), edges.data(), GL_STATIC_DRAW);
+    auto vertexArray = [&](const std::vector<unsigned>& indices) {
+        GLuint array = 0, indexBuffer = 0;
+        glGenVertexArrays(1, &array);
+        glBindVertexArray(array);
+        glBindBuffer(GL_ARRAY_BUFFER, vertexBuffer);
+        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), nullptr);
+        glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), reinterpret_cast<void*>(3 * sizeof(float)));
+        glEnableVertexAttribArray(0);
+        glEnableVertexAttribArray(1);
+        glGenBuffers(1, &indexBuffer);
+        glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, indexBuffer);
+        glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(indices.size() * sizeof(unsigned)), indices.data(), GL_STATIC_DRAW);
+        return array;
+    };
+    const GLuint vao = vertexArray(triangles), edgeVao = vertexArray(edges);
     GLuint display = 0;
     glGenVertexArrays(1, &display);
     const GLuint sceneProgram = program(kSceneVertex, kSceneFragment);
@@ -364,12 +372,13 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
         sceneSize = mesh.positions.empty() ? 1.0 : std::max((hi - lo).norm(), 1e-6);
     }
     float stops = float(options.exposureStops);
+    int toneMap = 0;   // 0: clamp, as the previews; 1: Reinhard
     const double autoScale = exportExposure(mesh, 0);
     double lastTime = glfwGetTime();
     Keys keys;
     if (!screenshot)
         logInfo("view: left drag orbits, right drag pans, wheel zooms, F toggles fly mode (WASD + mouse), E edges, "
-                "R resets, P prints the camera, +/- exposure, G renders the final gather of the view, Esc quits");
+                "R resets, P prints the camera, +/- exposure, T tone mapping, G renders the final gather of the view, Esc quits");
 
     for (int frame = 0; !glfwWindowShouldClose(window); ++frame) {
         glfwPollEvents();
@@ -398,12 +407,14 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
                 if (keys.pressed(window, GLFW_KEY_MINUS) || keys.pressed(window, GLFW_KEY_KP_SUBTRACT)) stops -= 0.5f;
                 if (keys.pressed(window, GLFW_KEY_ESCAPE)) glfwSetWindowShouldClose(window, GLFW_TRUE);
                 if (keys.pressed(window, GLFW_KEY_G)) startGather = true;
+                if (keys.pressed(window, GLFW_KEY_T)) toneMap = 1 - toneMap;
             }
             ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
             ImGui::Begin("penumbra", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
             ImGui::TextUnformatted(options.statistics.c_str());
             ImGui::Text("%zu patches, %zu triangles", patches.size(), mesh.triangles.size());
             ImGui::SliderFloat("exposure (stops)", &stops, -10.0f, 10.0f);
+            ImGui::Combo("tone mapping (T)", &toneMap, "clamp (as the previews)\0Reinhard\0");
             ImGui::Checkbox("patch edges (E)", &nav.edges);
             ImGui::Checkbox("fly mode (F, WASD)", &nav.fly);
             if (ImGui::Button("reset view (R)")) nav.camera = nav.start;
@@ -504,6 +515,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
         glBindTexture(GL_TEXTURE_2D, showGather ? gatherTexture : colour);
         glUniform1i(glGetUniformLocation(displayProgram, "image"), 0);
         glUniform1f(glGetUniformLocation(displayProgram, "scale"), float(autoScale * std::pow(2.0, double(stops))));
+        glUniform1i(glGetUniformLocation(displayProgram, "reinhard"), toneMap);
         glBindVertexArray(display);
         glDrawArrays(GL_TRIANGLES, 0, 3);
         ImGui::Render();
