@@ -222,6 +222,13 @@ void PatchSet::add(const std::array<Vec3, 4>& c, int count, int objectIndex, con
     radius.push_back(r);
 }
 
+Eigen::AlignedBox3d patchBounds(const PatchSet& patches) {
+    Eigen::AlignedBox3d box;
+    for (const auto& corners : patches.corners)
+        for (const Vec3& p : corners) box.extend(p);
+    return box;
+}
+
 double sceneArea(const Scene& scene) {
     double total = 0;
     for (const auto& o : scene.objects) {

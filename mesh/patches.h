@@ -44,6 +44,9 @@ struct MeshingOptions {
 // Meshes every object of the scene (OpenMesh) into patches.
 PatchSet meshScene(const Scene& scene, const MeshingOptions& options);
 
+// The axis-aligned box around all patch corners, metres (empty for no patches).
+Eigen::AlignedBox3d patchBounds(const PatchSet& patches);
+
 // Total surface area of the scene's objects, m^2 (spheres exactly, before tessellation).
 double sceneArea(const Scene& scene);
 

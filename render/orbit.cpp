@@ -5,13 +5,7 @@
 namespace penumbra {
 
 Vec3 patchesCentre(const PatchSet& patches) {
-    Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
-    for (size_t i = 0; i < patches.size(); ++i)
-        for (const Vec3& p : patches.corners[i]) {
-            lo = lo.cwiseMin(p);
-            hi = hi.cwiseMax(p);
-        }
-    return patches.size() ? Vec3(0.5 * (lo + hi)) : Vec3(Vec3::Zero());
+    return patches.size() ? Vec3(patchBounds(patches).center()) : Vec3(Vec3::Zero());
 }
 
 std::vector<Camera> orbitCameras(const Camera& start, const Vec3& centre, int count) {

@@ -41,14 +41,7 @@ struct PhotonMap::Impl {
 PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
     : impl_(std::make_unique<Impl>()), nearest_(settings.nearest) {
     Timer timer;
-    const PatchSet& patches = tracer.patches();
-    Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
-    for (size_t i = 0; i < patches.size(); ++i)
-        for (const Vec3& p : patches.corners[i]) {
-            lo = lo.cwiseMin(p);
-            hi = hi.cwiseMax(p);
-        }
-    maxRadius_ = settings.maxRadius * (patches.size() ? (hi - lo).norm() : 1.0);
+    maxRadius_ = settings.maxRadius * tracer.diagonal();
     const int64_t n = tracer.hasEmitters() ? settings.photons : 0;
     const int64_t chunks = (n + kChunk - 1) / kChunk;
     std::vector<std::vector<Photon>> stored(static_cast<size_t>(chunks));

@@ -82,16 +82,10 @@ SceneTracer::SceneTracer(const Scene& scene, const PatchSet& patches) : scene_(s
         }
     }
     std::vector<char> skip(patches.size(), 0);
-    Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
-    for (size_t i = 0; i < patches.size(); ++i) {
-        skip[i] = objectSphere[size_t(patches.object[i])] >= 0;
-        for (const Vec3& p : patches.corners[i]) {
-            lo = lo.cwiseMin(p);
-            hi = hi.cwiseMax(p);
-        }
-    }
+    for (size_t i = 0; i < patches.size(); ++i) skip[i] = objectSphere[size_t(patches.object[i])] >= 0;
+    diagonal_ = patches.size() ? patchBounds(patches).diagonal().norm() : 1.0;
     // Offsets off surfaces: far above float rounding of the geometry, far below any feature.
-    epsilon_ = patches.size() ? 1e-6 * std::max((hi - lo).norm(), 1e-3) : 1e-6;
+    epsilon_ = 1e-6 * std::max(diagonal_, 1e-3);
     rays_ = std::make_unique<RayScene>(patches, spheres_, skip);
 
     emitterPdf_.assign(patches.size(), 0);

@@ -52,6 +52,8 @@ public:
         return hit.point + (hit.normal.dot(dir) > 0 ? epsilon_ : -epsilon_) * hit.normal;
     }
     double epsilon() const { return epsilon_; }
+    // Length of the diagonal of the box around the scene, metres (1 for an empty scene).
+    double diagonal() const { return diagonal_; }
 
     bool hasEmitters() const { return !emitterCdf_.empty(); }
     // True if some object is a mirror or glass.
@@ -76,6 +78,7 @@ private:
     std::vector<double> emitterPdf_;      // per patch, per m^2
     Rgb emittedPower_ = Rgb::Zero();
     bool hasSpecular_ = false;
+    double diagonal_ = 1;
     double epsilon_ = 1e-6;
 };
 

@@ -365,12 +365,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
     glGenTextures(1, &gatherTexture);
     int shownPasses = 0;
     nav.camera = nav.start = start;
-    double sceneSize = 0;
-    {
-        Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
-        for (const Vec3& p : mesh.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-        sceneSize = mesh.positions.empty() ? 1.0 : std::max((hi - lo).norm(), 1e-6);
-    }
+    const double sceneSize = patches.size() ? std::max(patchBounds(patches).diagonal().norm(), 1e-6) : 1.0;
     float stops = float(options.exposureStops);
     int toneMap = 0;   // 0: clamp, as the previews; 1: Reinhard
     const double autoScale = exportExposure(mesh, 0);
