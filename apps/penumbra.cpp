@@ -4,23 +4,23 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include "core/error.h"
 #include "core/log.h"
 #include "core/parallel.h"
+#include "core/timer.h"
 #include "io/atomic_file.h"
-#include <fstream>
-#include <sstream>
 #include "io/export.h"
 #include "io/image_io.h"
 #include "io/report.h"
 #include "io/solution.h"
 #include "mesh/scene.h"
-#include "core/timer.h"
 #include "render/final_gather.h"
 #include "render/image_metrics.h"
-#include "render/path_tracer.h"
 #include "render/orbit.h"
+#include "render/path_tracer.h"
 #include "render/photon_map.h"
 #include "render/radiosity_view.h"
 #include "solver/solve.h"
@@ -191,9 +191,9 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
         for (const Camera& cam : cameras)
             images.push_back(renderRadiosityView(scene, cam, stored.patches, rays, corners, {spp, common.seed}));
     } else {
-        for (const Camera& cam : cameras)
-            images.push_back(renderSolvedScene(scene, stored.patches, stored.display, cam, spp, common.seed, c.gather,
-                                               c.photons));
+        // The ray scene and the photon map serve every view of an orbit.
+        const SolvedScene solved(scene, stored.patches, stored.display, c.gather, c.photons, common.seed);
+        for (const Camera& cam : cameras) images.push_back(solved.render(cam, spp, common.seed));
     }
     const double seconds = timer.seconds();
 

@@ -120,20 +120,22 @@ Image renderFinalGather(const FinalGather& gather, const Camera& camera, int sam
                         [&](const Vec3& o, const Vec3& d, Rng& rng) { return gather.radiance(o, d, rng); });
 }
 
-Image renderSolvedScene(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity,
-                        const Camera& camera, int samplesPerPixel, uint64_t seed, const GatherSettings& settings,
-                        PhotonSettings photons) {
-    const auto corners = interpolateCorners(patches, radiosity);
-    const SceneTracer tracer(scene, patches);
-    std::unique_ptr<PhotonMap> caustics;
-    if (tracer.hasSpecular()) {
+SolvedScene::SolvedScene(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity,
+                         const GatherSettings& settings, PhotonSettings photons, uint64_t seed)
+    : corners_(interpolateCorners(patches, radiosity)), tracer_(std::make_unique<SceneTracer>(scene, patches)) {
+    if (tracer_->hasSpecular()) {
         photons.seed = seed;
-        caustics = std::make_unique<PhotonMap>(tracer, photons);
+        caustics_ = std::make_unique<PhotonMap>(*tracer_, photons);
     } else {
         logInfo("no mirrors or glass in the scene: no photon pass, no specular paths");
     }
-    const FinalGather gather(tracer, corners, caustics.get(), settings);
-    return renderFinalGather(gather, camera, samplesPerPixel, seed);
+    gather_ = std::make_unique<FinalGather>(*tracer_, corners_, caustics_.get(), settings);
+}
+
+Image renderSolvedScene(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity,
+                        const Camera& camera, int samplesPerPixel, uint64_t seed, const GatherSettings& settings,
+                        PhotonSettings photons) {
+    return SolvedScene(scene, patches, radiosity, settings, photons, seed).render(camera, samplesPerPixel, seed);
 }
 
 }  // namespace penumbra

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <array>
+#include <memory>
 #include <vector>
 
 #include "core/rng.h"
@@ -59,8 +60,26 @@ private:
 
 Image renderFinalGather(const FinalGather& gather, const Camera& camera, int samplesPerPixel, uint64_t seed);
 
-// The whole final-gather render of a solved scene: the ray scene, the photon pass if (and only if)
-// the scene has mirrors or glass, then the image. `radiosity` is B per patch of `patches`.
+// What the final gather of a solved scene needs, built once for any number of views: the corner
+// radiosity, the ray scene, and the photon pass if (and only if) the scene has mirrors or glass.
+// `radiosity` is B per patch of `patches`; both must outlive this object.
+class SolvedScene {
+public:
+    SolvedScene(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity,
+                const GatherSettings& settings, PhotonSettings photons, uint64_t seed);
+    Image render(const Camera& camera, int samplesPerPixel, uint64_t seed) const {
+        return renderFinalGather(*gather_, camera, samplesPerPixel, seed);
+    }
+    const FinalGather& gather() const { return *gather_; }
+
+private:
+    std::vector<std::array<Rgb, 4>> corners_;
+    std::unique_ptr<SceneTracer> tracer_;
+    std::unique_ptr<PhotonMap> caustics_;
+    std::unique_ptr<FinalGather> gather_;
+};
+
+// One final-gather render of a solved scene (a SolvedScene for a single view).
 Image renderSolvedScene(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity,
                         const Camera& camera, int samplesPerPixel, uint64_t seed, const GatherSettings& gather,
                         PhotonSettings photons);

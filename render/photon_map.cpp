@@ -100,8 +100,11 @@ PhotonMap::~PhotonMap() = default;
 Rgb PhotonMap::irradiance(const Vec3& x, const Vec3& n) const {
     if (impl_->cloud.photons.empty()) return Rgb::Zero();
     const size_t k = size_t(nearest_);
-    std::vector<uint32_t> index(k);
-    std::vector<float> dist2(k);
+    // Called at every shading point: the result buffers live with the thread, not the call.
+    thread_local std::vector<uint32_t> index;
+    thread_local std::vector<float> dist2;
+    index.resize(k);
+    dist2.resize(k);
     const Eigen::Vector3f q = x.cast<float>();
     // k nearest, but none beyond the largest radius: seeding the k-th distance with it lets the
     // tree skip everything farther (in sparse regions most of the tree).

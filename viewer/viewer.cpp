@@ -21,7 +21,6 @@
 #include "io/export.h"
 #include "io/image_io.h"
 #include "render/final_gather.h"
-#include "render/photon_map.h"
 
 namespace penumbra {
 namespace {
@@ -194,19 +193,14 @@ public:
 
     void start(const Camera& camera) {
         stop();
-        if (!gather_) {
-            corners_ = interpolateCorners(patches_, radiosity_);
-            tracer_ = std::make_unique<SceneTracer>(scene_, patches_);
-            if (tracer_->hasSpecular()) photons_ = std::make_unique<PhotonMap>(*tracer_, PhotonSettings{});
-            gather_ = std::make_unique<FinalGather>(*tracer_, corners_, photons_.get(), GatherSettings{});
-        }
+        if (!solved_) solved_ = std::make_unique<SolvedScene>(scene_, patches_, radiosity_, GatherSettings{}, PhotonSettings{}, 1);
         camera_ = camera;
         cancel_ = false;
         passes_ = 0;
         sum_.assign(size_t(camera.width) * size_t(camera.height) * 3, 0.0);
         worker_ = std::thread([this] {
             for (uint64_t pass = 1; !cancel_; ++pass) {
-                const Image image = renderFinalGather(*gather_, camera_, 1, pass);
+                const Image image = solved_->render(camera_, 1, pass);
                 if (cancel_) break;
                 std::lock_guard<std::mutex> lock(mutex_);
                 for (size_t k = 0; k < sum_.size(); ++k) sum_[k] += image.rgb[k];
@@ -234,10 +228,7 @@ private:
     const Scene& scene_;
     const PatchSet& patches_;
     const std::vector<Rgb>& radiosity_;
-    std::vector<std::array<Rgb, 4>> corners_;
-    std::unique_ptr<SceneTracer> tracer_;
-    std::unique_ptr<PhotonMap> photons_;
-    std::unique_ptr<FinalGather> gather_;
+    std::unique_ptr<SolvedScene> solved_;   // built on the first G
     Camera camera_;
     std::thread worker_;
     std::atomic<bool> cancel_{false};
