@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "bench/trade.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "core/parallel.h"
@@ -256,6 +257,27 @@ int runExport(const std::string& dir, const std::string& out, std::string format
     return 0;
 }
 
+int runBenchCommand(bench::BenchOptions& options, const std::string& resolution) {
+    if (!resolution.empty()) {
+        int used = 0;
+        if (std::sscanf(resolution.c_str(), "%dx%d%n", &options.width, &options.height, &used) != 2 ||
+            size_t(used) != resolution.size() || options.width < 1 || options.height < 1 || options.width > 16384 ||
+            options.height > 16384)
+            throw Error(cat("--resolution: expected WIDTHxHEIGHT with sides in [1, 16384], got '", resolution, "'"));
+    }
+    const bench::BenchResult result = bench::runBench(options);
+    // Everything is measured before the first file is written.
+    ensureDirectory(options.out);
+    const std::filesystem::path dir(options.out);
+    writeFileAtomic((dir / "trade.csv").string(), bench::tradeCsv(result.rows));
+    writeFileAtomic((dir / "bench.json").string(), bench::benchJson(result));
+    writeFileAtomic((dir / "summary.md").string(), bench::summaryMarkdown(result));
+    const bool plotted = bench::writePlots(result, options.out);
+    logInfo("wrote ", (dir / "trade.csv").string(), " (", result.rows.size(), " runs), bench.json, summary.md",
+            plotted ? ", error-time.png and cost-patches.png" : " (no plots)");
+    return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -338,7 +360,19 @@ int main(int argc, char** argv) {
                       "With --screenshot: save the window as shown, panel included");
     addSolveOptions(viewCmd, viewSolve);
 
-    for (CLI::App* cmd : {solveCmd, renderCmd, viewCmd, exportCmd}) {
+    bench::BenchOptions benchOptions;
+    std::string benchResolution;
+    CLI::App* benchCmd = app.add_subcommand("bench", "Measure the speed-accuracy trade of a scene and this machine's limits");
+    benchCmd->add_option("scene", benchOptions.scene, "Scene JSON file (with a camera)")->required();
+    benchCmd->add_option("--out", benchOptions.out, "Output directory (trade.csv, summary.md, plots)")->required();
+    benchCmd->add_flag("--quick", benchOptions.quick, "A one-minute version: fewer, smaller runs");
+    benchCmd->add_option("--resolution", benchResolution, "WIDTHxHEIGHT of the images compared (default 256 wide, quick 64)");
+    benchCmd->add_option("--reference-spp", benchOptions.referenceSpp,
+                         "Samples per pixel of the path-traced reference (default 4096, quick 1024)")
+        ->check(CLI::Range(1, 1 << 24));
+    benchCmd->add_option("--cache", benchOptions.cache, "Folder for cached references (default ~/.cache/penumbra)");
+
+    for (CLI::App* cmd : {solveCmd, renderCmd, viewCmd, exportCmd, benchCmd}) {
         cmd->add_option("--threads", common.threads, "Threads (0: all cores)");
         cmd->add_flag("--quiet,-q", common.quiet, "Warnings and errors only");
         cmd->add_flag("--verbose,-v", common.verbose, "Debug output");
@@ -363,6 +397,10 @@ int main(int argc, char** argv) {
             return 0;
         }
         if (*viewCmd) return runView(view, viewSolve, viewer, common);
+        if (*benchCmd) {
+            benchOptions.seed = common.seed;
+            return runBenchCommand(benchOptions, benchResolution);
+        }
     } catch (const Error& e) {
         std::fprintf(stderr, "penumbra: error: %s\n", e.what());
         return 1;

@@ -52,6 +52,13 @@ void checkSteadyState(const Scene& scene, const RadiositySystem& s, const std::v
 double availableMemoryBytes() { return procKilobytes("/proc/meminfo", "MemAvailable:"); }
 double peakMemoryBytes() { return procKilobytes("/proc/self/status", "VmHWM:"); }
 
+bool resetPeakMemory() {
+    std::ofstream clear("/proc/self/clear_refs");
+    clear << "5";   // 5: reset the peak resident set size to the current one
+    clear.flush();
+    return bool(clear);
+}
+
 SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer) {
     SolveResult r;
     auto solver = makeSolver(options.solver);

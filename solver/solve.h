@@ -41,5 +41,8 @@ SolveResult solveScene(const Scene& scene, const SolveOptions& options, const St
 double availableMemoryBytes();
 // Peak resident memory of this process so far, bytes.
 double peakMemoryBytes();
+// Starts the peak over from the current resident memory (Linux clear_refs), so that the peak of one
+// stage can be read on its own; returns false where the kernel does not allow it.
+bool resetPeakMemory();
 
 }  // namespace penumbra

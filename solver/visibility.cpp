@@ -4,6 +4,9 @@
 #include <pmmintrin.h>
 #include <xmmintrin.h>
 
+#include <atomic>
+#include <deque>
+#include <mutex>
 #include <string>
 
 #include "core/error.h"
@@ -16,7 +19,33 @@ void embreeError(void* user, RTCError code, const char* message) {
     auto* last = static_cast<std::string*>(user);
     if (last->empty()) *last = cat("Embree error ", int(code), ": ", message ? message : "(no message)");
 }
+// One counter per thread, each on its own cache line: an increment never waits for another core.
+struct alignas(64) RayCounter {
+    std::atomic<uint64_t> rays{0};
+};
+std::mutex g_countersMutex;
+std::deque<RayCounter> g_counters;   // a deque keeps addresses stable as threads register
+
+RayCounter& threadCounter() {
+    thread_local RayCounter* mine = [] {
+        std::lock_guard<std::mutex> lock(g_countersMutex);
+        return &g_counters.emplace_back();
+    }();
+    return *mine;
+}
+
+inline void countRay() {
+    std::atomic<uint64_t>& c = threadCounter().rays;
+    c.store(c.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+}
 }  // namespace
+
+uint64_t raysCast() {
+    std::lock_guard<std::mutex> lock(g_countersMutex);
+    uint64_t sum = 0;
+    for (const RayCounter& c : g_counters) sum += c.rays.load(std::memory_order_relaxed);
+    return sum;
+}
 
 void prepareTracingThread() {
     _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
@@ -105,6 +134,7 @@ bool RayScene::occluded(const Vec3& from, const Vec3& to, double trim) const {
     ray.id = 0;
     ray.flags = 0;
     rtcOccluded1(impl_->scene, &context, &ray);
+    countRay();
     return ray.tfar < 0;
 }
 
@@ -127,6 +157,7 @@ Hit RayScene::intersect(const Vec3& origin, const Vec3& dir, double tMin, double
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(impl_->scene, &context, &rh);
+    countRay();
     Hit hit;
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
     if (rh.hit.geomID == 0)

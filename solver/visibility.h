@@ -51,4 +51,8 @@ private:
 // Sets the flush-to-zero and denormals-are-zero flags Embree wants in every tracing thread.
 void prepareTracingThread();
 
+// Rays cast through any RayScene of this process so far (occlusion and nearest-hit queries alike):
+// the bench's "rays cast" counter. Counted per thread, without contention between threads.
+uint64_t raysCast();
+
 }  // namespace penumbra

@@ -7,13 +7,33 @@
 #include <fstream>
 #include <string>
 
+#include <sys/wait.h>
 #include <unistd.h>
+
+#include <array>
+#include <cstdio>
 
 #include "core/error.h"
 #include "mesh/scene.h"
 #include "solver/solve.h"
 
 namespace penumbra::test {
+
+struct CommandResult {
+    int status;
+    std::string output;   // stderr and stdout together
+};
+
+// Runs the penumbra executable with `args` (a shell command line) and collects what it prints.
+inline CommandResult run(const std::string& args) {
+    const std::string command = std::string(PENUMBRA_EXE) + " " + args + " 2>&1";
+    FILE* pipe = popen(command.c_str(), "r");
+    std::string out;
+    std::array<char, 4096> buffer;
+    while (size_t n = fread(buffer.data(), 1, buffer.size(), pipe)) out.append(buffer.data(), n);
+    const int status = pclose(pipe);
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), out};
+}
 
 inline std::string tempDir() {
     static const std::string dir = [] {

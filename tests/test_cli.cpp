@@ -20,20 +20,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct CommandResult {
-    int status;
-    std::string output;   // stderr and stdout together
-};
-
-CommandResult run(const std::string& args) {
-    const std::string command = std::string(PENUMBRA_EXE) + " " + args + " 2>&1";
-    FILE* pipe = popen(command.c_str(), "r");
-    std::string out;
-    std::array<char, 4096> buffer;
-    while (size_t n = fread(buffer.data(), 1, buffer.size(), pipe)) out.append(buffer.data(), n);
-    const int status = pclose(pipe);
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), out};
-}
+using test::CommandResult;
+using test::run;
 
 const char* kLamp = R"("lamp": {"type": "diffuse", "reflectance": 0.5, "emission": 1})";
 

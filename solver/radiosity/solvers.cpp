@@ -67,7 +67,7 @@ public:
         for (int k = 0;; ++k) {
             const double residual = relativeResidual(s, B, gatherIrradiance(s, F, B));
             if (run.record(k, residual)) break;
-            for (size_t i = 0; i < s.size(); ++i) B[i] = s.emission[i] + s.reflectance[i] * irradianceAt(s, F, i, B);
+            gaussSeidelPass(s, F, B);
             if (observer) observer(k + 1, B);
         }
         out.B = B;

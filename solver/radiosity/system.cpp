@@ -1,5 +1,6 @@
 #include "solver/radiosity/system.h"
 
+
 #include "core/parallel.h"
 
 namespace penumbra {
@@ -21,13 +22,50 @@ RadiositySystem buildSystem(const Scene& scene, const PatchSet& patches) {
     return s;
 }
 
+ChannelPlanes::ChannelPlanes(const std::vector<Rgb>& B) {
+    for (int k = 0; k < 3; ++k) {
+        c[k].resize(B.size());
+        for (size_t i = 0; i < B.size(); ++i) c[k][i] = B[i][k];
+    }
+}
+
+// The sweeps are bound by reading the matrix. `omp simd` (compiled with -fopenmp-simd, no OpenMP
+// runtime) lets the compiler vectorise the three double sums, whose order it may then change, and
+// target_clones builds the loop for AVX2 with FMA as well as for the baseline, chosen when the
+// program loads. The sums stay in double: summing in float (twice the vector width) was measured
+// 1.3x faster but loses a 1e-6 lamp beside a 1e6 one (the twelve-orders test).
+__attribute__((target_clones("arch=haswell", "default")))
+Rgb rowIrradiance(const FormFactorMatrix& F, size_t i, const ChannelPlanes& B) {
+    const float* row = F.row(i);
+    const double *b0 = B.c[0].data(), *b1 = B.c[1].data(), *b2 = B.c[2].data();
+    const size_t n = F.size();
+    double h0 = 0, h1 = 0, h2 = 0;
+#pragma omp simd reduction(+ : h0, h1, h2)
+    for (size_t j = 0; j < n; ++j) {
+        const double f = row[j];
+        h0 += f * b0[j];
+        h1 += f * b1[j];
+        h2 += f * b2[j];
+    }
+    return Rgb(h0, h1, h2);
+}
+
 std::vector<Rgb> gatherIrradiance(const RadiositySystem& s, const FormFactorMatrix& F, const std::vector<Rgb>& B) {
     const size_t n = F.size();
+    const ChannelPlanes planes(B);
     std::vector<Rgb> H(n);
     parallelFor(int64_t(n), [&](int64_t begin, int64_t end) {
-        for (int64_t i = begin; i < end; ++i) H[size_t(i)] = irradianceAt(s, F, size_t(i), B);
+        for (int64_t i = begin; i < end; ++i) H[size_t(i)] = irradianceAt(s, F, size_t(i), B, planes);
     }, 16);
     return H;
+}
+
+void gaussSeidelPass(const RadiositySystem& s, const FormFactorMatrix& F, std::vector<Rgb>& B) {
+    ChannelPlanes planes(B);
+    for (size_t i = 0; i < s.size(); ++i) {
+        B[i] = s.emission[i] + s.reflectance[i] * irradianceAt(s, F, i, B, planes);
+        planes.set(i, B[i]);
+    }
 }
 
 double relativeResidual(const RadiositySystem& s, const std::vector<Rgb>& B, const std::vector<Rgb>& H) {

@@ -27,24 +27,28 @@ struct RadiositySystem {
 
 RadiositySystem buildSystem(const Scene& scene, const PatchSet& patches);
 
+// B as three planar arrays, one per channel: the layout the row kernel streams at full vector width.
+struct ChannelPlanes {
+    std::vector<double> c[3];
+    explicit ChannelPlanes(const std::vector<Rgb>& B);
+    void set(size_t i, const Rgb& v) { c[0][i] = v[0], c[1][i] = v[1], c[2][i] = v[2]; }
+};
+
 // Irradiance sum_j F(i,j) B_j arriving at patch i's front face, W/m^2: one pass over row i for all
-// three channels.
-inline Rgb rowIrradiance(const FormFactorMatrix& F, size_t i, const std::vector<Rgb>& B) {
-    const float* row = F.row(i);
-    double h0 = 0, h1 = 0, h2 = 0;
-    for (size_t j = 0; j < F.size(); ++j) {
-        const double f = row[j];
-        h0 += f * B[j][0];
-        h1 += f * B[j][1];
-        h2 += f * B[j][2];
-    }
-    return Rgb(h0, h1, h2);
+// three channels, summed in double (system.cpp: vectorised, and built for AVX2 too, picked at run
+// time, so that a sweep keeps pace with the memory that streams the matrix).
+Rgb rowIrradiance(const FormFactorMatrix& F, size_t i, const ChannelPlanes& B);
+
+// Irradiance at patch i's front face from all patches, directly and through mirrors and glass
+// (`planes` holds the same values as `B`).
+inline Rgb irradianceAt(const RadiositySystem& s, const FormFactorMatrix& F, size_t i, const std::vector<Rgb>& B,
+                        const ChannelPlanes& planes) {
+    return rowIrradiance(F, i, planes) + s.transport.incoming(i, B);
 }
 
-// Irradiance at patch i's front face from all patches, directly and through mirrors and glass.
-inline Rgb irradianceAt(const RadiositySystem& s, const FormFactorMatrix& F, size_t i, const std::vector<Rgb>& B) {
-    return rowIrradiance(F, i, B) + s.transport.incoming(i, B);
-}
+// One Gauss-Seidel pass in place: B_i = E_i + rho_i H_i in patch order, each row reading the values
+// this pass already updated.
+void gaussSeidelPass(const RadiositySystem& s, const FormFactorMatrix& F, std::vector<Rgb>& B);
 
 // Irradiance H_i arriving at every front face, W/m^2.
 std::vector<Rgb> gatherIrradiance(const RadiositySystem& s, const FormFactorMatrix& F, const std::vector<Rgb>& B);

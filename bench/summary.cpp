@@ -1,0 +1,348 @@
+// The files of `penumbra bench`: trade.csv (one line a run), bench.json (limits, thread scaling,
+// targets), summary.md (the tables, for the docs) and the plots through gnuplot.
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+
+#include "bench/trade.h"
+#include "core/error.h"
+#include "core/log.h"
+#include "io/atomic_file.h"
+
+namespace penumbra::bench {
+namespace {
+
+const char* methodTitle(const std::string& method) {
+    if (method == "final-gather") return "radiosity + final gather";
+    if (method == "radiosity") return "radiosity alone";
+    return "path tracing";
+}
+
+std::string settingText(const Setting& s) {
+    if (s.method == "path") return cat(s.spp, " spp");
+    std::string t = cat(s.patches, " patches");
+    if (s.visibilityRays != 4) t += cat(", ", s.visibilityRays, " vis. rays");
+    if (s.tolerance != 1e-6) t += cat(", tol ", s.tolerance);
+    if (s.method == "final-gather") {
+        t += cat(", ", s.spp, " spp, ", s.gatherRays, " gather rays");
+        if (s.photons != 1000000) t += cat(", ", s.photons, " photons");
+        if (s.photonK != 100) t += cat(", k ", s.photonK);
+    } else {
+        t += cat(", ", s.spp, " spp");
+    }
+    return t;
+}
+
+std::string fixed(double v, int digits) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+    return buf;
+}
+std::string percent(double v) { return fixed(100 * v, v < 0.1 ? 2 : 1) + "%"; }
+
+// The cheapest run of a method (any if empty) whose error is at most `limit`.
+const Row* cheapest(const std::vector<Row>& rows, const std::string& method, double limit) {
+    const Row* best = nullptr;
+    for (const Row& r : rows)
+        if ((method.empty() || r.setting.method == method) && r.imageError <= limit && (!best || r.total() < best->total()))
+            best = &r;
+    return best;
+}
+
+// error = a * seconds^b fitted to the path tracer's runs (log-log least squares).
+struct PowerFit {
+    double a = 0, b = 0;
+    bool ok = false;
+    double secondsFor(double error) const { return std::pow(error / a, 1 / b); }
+};
+PowerFit fitPath(const std::vector<Row>& rows) {
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    int n = 0;
+    for (const Row& r : rows)
+        if (r.setting.method == "path" && r.imageError > 0 && r.total() > 0) {
+            const double x = std::log(r.total()), y = std::log(r.imageError);
+            sx += x, sy += y, sxx += x * x, sxy += x * y, ++n;
+        }
+    PowerFit f;
+    if (n < 2 || sxx * n - sx * sx <= 0) return f;
+    f.b = (n * sxy - sx * sy) / (n * sxx - sx * sx);
+    f.a = std::exp((sy - f.b * sx) / n);
+    f.ok = f.b < 0;
+    return f;
+}
+
+// Seconds the path tracer needs for `error` on this image: measured if a run got there, else from
+// the fit (flagged).
+struct PathTime {
+    double seconds = 0;
+    bool measured = false, known = false;
+};
+PathTime pathTimeFor(const std::vector<Row>& rows, double error) {
+    if (const Row* r = cheapest(rows, "path", error)) return {r->total(), true, true};
+    const PowerFit f = fitPath(rows);
+    if (!f.ok) return {};
+    return {f.secondsFor(error), false, true};
+}
+
+struct Targets {
+    double error = 0.02;
+    const Row* gather = nullptr;   // cheapest final gather at 2%
+    PathTime path;
+    const Row* orbit = nullptr;    // cheapest final gather at 2% for 36 views (solve once)
+    double orbitSeconds = 0, orbitPathSeconds = 0;
+    const Row* view = nullptr;     // the radiosity view of the default solve
+};
+Targets targetsOf(const BenchResult& r) {
+    Targets t;
+    t.gather = cheapest(r.rows, "final-gather", t.error);
+    t.path = pathTimeFor(r.rows, t.error);
+    for (const Row& row : r.rows) {
+        if (row.setting.method != "final-gather" || row.imageError > t.error) continue;
+        const double cost = row.solveTotal() + row.photons + 36 * row.render;
+        if (!t.orbit || cost < t.orbitSeconds) t.orbit = &row, t.orbitSeconds = cost;
+    }
+    t.orbitPathSeconds = 36 * t.path.seconds;
+    for (const Row& row : r.rows)
+        if (row.setting.method == "radiosity" && row.setting.sweep == "default") t.view = &row;
+    return t;
+}
+
+}  // namespace
+
+void markPareto(std::vector<Row>& rows) {
+    for (Row& r : rows) {
+        r.pareto = true;
+        for (const Row& o : rows)
+            if (&o != &r && o.total() <= r.total() && o.imageError <= r.imageError &&
+                (o.total() < r.total() || o.imageError < r.imageError)) {
+                r.pareto = false;
+                break;
+            }
+    }
+}
+
+std::string tradeCsv(const std::vector<Row>& rows) {
+    std::string csv =
+        "method,sweep,patches_asked,patches,visibility_rays,tolerance,photons,photon_k,gather_rays,spp,"
+        "seconds_meshing,seconds_form_factors,seconds_specular,seconds_solve,seconds_photons,seconds_render,"
+        "seconds_total,peak_memory_mib,matrix_mib,rays,image_error_blurred,image_error_raw,rmse,"
+        "object_error_max,object_error_mean,pareto\n";
+    auto opt = [](double v) { return v < 0 ? std::string() : cat(v); };
+    for (const Row& r : rows) {
+        const Setting& s = r.setting;
+        const bool path = s.method == "path";
+        csv += cat(s.method, ",", s.sweep, ",", path ? "" : cat(s.patches), ",", r.patchesMade, ",",
+                   path ? "" : cat(s.visibilityRays), ",", path ? "" : cat(s.tolerance), ",",
+                   s.method == "final-gather" ? cat(s.photons) : "", ",", s.method == "final-gather" ? cat(s.photonK) : "",
+                   ",", s.method == "final-gather" ? cat(s.gatherRays) : "", ",", s.spp, ",", r.meshing, ",",
+                   r.formFactors, ",", r.specular, ",", r.solve, ",", r.photons, ",", r.render, ",", r.total(), ",",
+                   r.peakMiB, ",", r.matrixMiB, ",", r.rays, ",", r.imageError, ",", r.imageErrorRaw, ",", r.rmse, ",",
+                   opt(r.objectErrorMax), ",", opt(r.objectErrorMean), ",", r.pareto ? 1 : 0, "\n");
+    }
+    return csv;
+}
+
+std::string summaryMarkdown(const BenchResult& r) {
+    std::string md = cat("# Bench: ", r.scene, "\n\nMachine: ", r.machine, ". Images ", r.width, "x", r.height,
+                         "; reference: the path tracer at ", r.referenceSpp, " spp",
+                         r.referenceSeconds > 0 ? cat(" (", fixed(r.referenceSeconds, 1), " s)") : std::string(" (from the cache)"),
+                         ". Error: mean relative error per pixel and channel after a 5x5 box blur. Seconds: wall "
+                         "seconds from the scene file to the image.\n\n![error against time](error-time.png)\n"
+                         "![cost against patches](cost-patches.png)\n\n");
+    md += "## Settings that reach 10%, 3% and 1% error\n\n| error | method | cheapest setting that reaches it | seconds | error |\n|---|---|---|---|---|\n";
+    for (double limit : {0.10, 0.03, 0.01})
+        for (const char* method : {"final-gather", "radiosity", "path"}) {
+            const Row* row = cheapest(r.rows, method, limit);
+            if (row) {
+                md += cat("| ", percent(limit), " | ", methodTitle(method), " | ", settingText(row->setting), " | ",
+                          fixed(row->total(), 2), " | ", percent(row->imageError), " |\n");
+            } else if (std::string(method) == "path" && pathTimeFor(r.rows, limit).known) {
+                md += cat("| ", percent(limit), " | ", methodTitle(method), " | not reached; extrapolated | ",
+                          fixed(pathTimeFor(r.rows, limit).seconds, 1), " (fit) | |\n");
+            } else {
+                double best = 1e300;
+                for (const Row& x : r.rows)
+                    if (x.setting.method == method) best = std::min(best, x.imageError);
+                md += cat("| ", percent(limit), " | ", methodTitle(method), " | not reached (best ",
+                          best < 1e300 ? percent(best) : "-", ") | | |\n");
+            }
+        }
+
+    const Targets t = targetsOf(r);
+    const PowerFit fit = fitPath(r.rows);
+    md += "\n## Targets (2% error)\n\n";
+    if (fit.ok)
+        md += cat("Path tracer: error = ", fixed(fit.a, 4), " x seconds^", fixed(fit.b, 3),
+                  " fitted over its runs (the Monte Carlo rate is ^-0.5).\n\n");
+    if (t.gather && t.path.known)
+        md += cat("- One image at 2%: radiosity + final gather ", fixed(t.gather->total(), 2), " s (",
+                  settingText(t.gather->setting), ", error ", percent(t.gather->imageError), "); path tracer ",
+                  fixed(t.path.seconds, 1), " s (", t.path.measured ? "measured" : "extrapolated by the fit",
+                  "): **", fixed(t.path.seconds / t.gather->total(), 1), "x sooner**.\n");
+    else
+        md += "- One image at 2%: the final gather did not reach 2% in this sweep.\n";
+    if (t.orbit && t.path.known)
+        md += cat("- 36 views at 2%: one solve + photons + 36 final-gather renders = ", fixed(t.orbitSeconds, 1),
+                  " s (", settingText(t.orbit->setting), "); the path tracer ", fixed(t.orbitPathSeconds, 1),
+                  " s: ratio **", fixed(t.orbitSeconds / t.orbitPathSeconds, 3), "** (target at most 0.1).\n");
+    if (t.view)
+        md += cat("- A new viewpoint of the radiosity solution: ", fixed(t.view->render, 3), " s against the solve's ",
+                  fixed(t.view->solveTotal(), 2), " s: **", percent(t.view->render / t.view->solveTotal()),
+                  "** of it (target under 1%).\n");
+
+    const EmbreeLimit& e = r.embree;
+    const BandwidthLimit& b = r.bandwidth;
+    md += cat("\n## Close to the limit\n\nEmbree alone on the same patches and ", e.threads, " threads (", e.rays,
+              " rays each, made before the clock starts); memory on a ", b.n, "^2 float matrix (",
+              fixed(b.matrixBytes / (1 << 20), 0), " MiB).\n\n| stage | measured | limit | ratio |\n|---|---|---|---|\n");
+    if (r.formFactorSeconds > 0) {
+        const double rate = r.formFactorRays / r.formFactorSeconds;
+        md += cat("| form factors (rays / stage seconds) | ", fixed(rate / 1e6, 2), " M rays/s | Embree occlusion ",
+                  fixed(e.occluded1 / 1e6, 2), " M rays/s | ", percent(rate / e.occluded1), " |\n");
+        md += cat("| share of the form-factor stage its rays would take at Embree's rate | ",
+                  fixed(r.formFactorRays / e.occluded1, 2), " s of ", fixed(r.formFactorSeconds, 2), " s | | ",
+                  percent(r.formFactorRays / e.occluded1 / r.formFactorSeconds), " |\n");
+    }
+    if (r.gatherSeconds > 0)
+        md += cat("| final gather (rays / render seconds) | ", fixed(r.gatherRays / r.gatherSeconds / 1e6, 2),
+                  " M rays/s | Embree nearest hit ", fixed(e.intersect1 / 1e6, 2), " M rays/s | ",
+                  percent(r.gatherRays / r.gatherSeconds / e.intersect1), " |\n");
+    md += cat("| Embree 8-wide packets against single rays (occlusion) | ", fixed(e.occluded8 / 1e6, 2), " M rays/s | ",
+              fixed(e.occluded1 / 1e6, 2), " M rays/s | ", fixed(e.occluded8 / e.occluded1, 2), "x |\n");
+    md += cat("| Jacobi sweep (", b.threads, " threads) | ", fixed(b.jacobiGBs, 1), " GB/s (", fixed(b.jacobiSeconds * 1e3, 1),
+              " ms) | read stream ", fixed(b.readGBs, 1), " GB/s | ", percent(b.jacobiGBs / b.readGBs), " |\n");
+    md += cat("| Jacobi sweep against a copy | | copy ", fixed(b.copyGBs, 1), " GB/s | ", percent(b.jacobiGBs / b.copyGBs), " |\n");
+    md += cat("| Gauss-Seidel sweep (1 thread, sequential) | ", fixed(b.gaussSeidelGBs, 1), " GB/s (",
+              fixed(b.gaussSeidelSeconds * 1e3, 1), " ms) | read stream ", fixed(b.readGBs, 1), " GB/s | ",
+              percent(b.gaussSeidelGBs / b.readGBs), " |\n");
+
+    md += "\n## Threads\n\n| stage | size | 1 thread (s) | all threads (s) | speed-up | results identical |\n|---|---|---|---|---|---|\n";
+    for (const ThreadScaling& s : r.threads)
+        md += cat("| ", s.stage, " | ", s.size, " | ", fixed(s.oneThread, 2), " | ", fixed(s.allThreads, 2), " (", s.threads,
+                  ") | ", fixed(s.oneThread / s.allThreads, 2), "x | ", s.identical ? "yes" : "**no**", " |\n");
+
+    md += "\n## Runs\n\n| method | swept | setting | patches | mesh + FF + specular + solve (s) | photons (s) | render (s) | "
+          "total (s) | peak MiB | rays | error | object error (max) | Pareto |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    for (const Row& x : r.rows)
+        md += cat("| ", methodTitle(x.setting.method), " | ", x.setting.sweep, " | ", settingText(x.setting), " | ",
+                  x.patchesMade, " | ", fixed(x.solveTotal(), 2), " | ", fixed(x.photons, 2), " | ", fixed(x.render, 2),
+                  " | ", fixed(x.total(), 2), " | ", fixed(x.peakMiB, 0), " | ", x.rays, " | ", percent(x.imageError),
+                  " | ", x.objectErrorMax < 0 ? "-" : percent(x.objectErrorMax), " | ", x.pareto ? "yes" : "", " |\n");
+    return md;
+}
+
+std::string benchJson(const BenchResult& r) {
+    using Json = nlohmann::json;
+    const Targets t = targetsOf(r);
+    Json j;
+    j["scene"] = r.scene;
+    j["machine"] = r.machine;
+    j["resolution"] = {r.width, r.height};
+    j["reference_spp"] = r.referenceSpp;
+    j["embree"] = {{"threads", r.embree.threads}, {"rays", r.embree.rays}, {"occluded1_rays_per_s", r.embree.occluded1},
+                   {"occluded8_rays_per_s", r.embree.occluded8}, {"intersect1_rays_per_s", r.embree.intersect1}};
+    const BandwidthLimit& b = r.bandwidth;
+    j["bandwidth"] = {{"n", b.n}, {"threads", b.threads}, {"read_gb_per_s", b.readGBs}, {"copy_gb_per_s", b.copyGBs},
+                      {"jacobi_gb_per_s", b.jacobiGBs}, {"gauss_seidel_gb_per_s", b.gaussSeidelGBs},
+                      {"jacobi_over_read", b.jacobiGBs / b.readGBs}};
+    if (r.formFactorSeconds > 0)
+        j["form_factors"] = {{"rays", r.formFactorRays}, {"seconds", r.formFactorSeconds},
+                             {"rays_per_s", r.formFactorRays / r.formFactorSeconds},
+                             {"over_embree", r.formFactorRays / r.formFactorSeconds / r.embree.occluded1}};
+    if (r.gatherSeconds > 0)
+        j["final_gather"] = {{"rays", r.gatherRays}, {"seconds", r.gatherSeconds},
+                             {"rays_per_s", r.gatherRays / r.gatherSeconds},
+                             {"over_embree", r.gatherRays / r.gatherSeconds / r.embree.intersect1}};
+    Json threads = Json::array();
+    for (const ThreadScaling& s : r.threads)
+        threads.push_back({{"stage", s.stage}, {"size", s.size}, {"one_thread_s", s.oneThread},
+                           {"all_threads_s", s.allThreads}, {"threads", s.threads},
+                           {"speedup", s.oneThread / s.allThreads}, {"identical", s.identical}});
+    j["threads"] = threads;
+    Json targets;
+    targets["error"] = t.error;
+    if (t.gather) targets["final_gather_seconds"] = t.gather->total();
+    if (t.path.known) targets["path_seconds"] = t.path.seconds, targets["path_measured"] = t.path.measured;
+    if (t.gather && t.path.known) targets["speedup"] = t.path.seconds / t.gather->total();
+    if (t.orbit && t.path.known) targets["orbit36_ratio"] = t.orbitSeconds / t.orbitPathSeconds;
+    if (t.view) targets["radiosity_view_over_solve"] = t.view->render / t.view->solveTotal();
+    j["targets"] = targets;
+    return j.dump(2) + "\n";
+}
+
+bool writePlots(const BenchResult& r, const std::string& dir) {
+    const std::filesystem::path d(dir);
+    const std::filesystem::path data = d / "plot-data";
+    ensureDirectory(data.string());
+    auto points = [&](const std::string& method) {
+        std::vector<const Row*> rows;
+        for (const Row& x : r.rows)
+            if (x.setting.method == method) rows.push_back(&x);
+        std::sort(rows.begin(), rows.end(), [](const Row* a, const Row* b) { return a->total() < b->total(); });
+        std::string text = "# seconds_total image_error_blurred\n";
+        for (const Row* x : rows) text += cat(x->total(), " ", x->imageError, "\n");
+        return text;
+    };
+    writeFileAtomic((data / "final-gather.dat").string(), points("final-gather"));
+    writeFileAtomic((data / "radiosity.dat").string(), points("radiosity"));
+    writeFileAtomic((data / "path.dat").string(), points("path"));
+    std::vector<const Row*> front;
+    for (const Row& x : r.rows)
+        if (x.pareto) front.push_back(&x);
+    std::sort(front.begin(), front.end(), [](const Row* a, const Row* b) { return a->total() < b->total(); });
+    std::string frontText = "# seconds_total image_error_blurred\n";
+    for (const Row* x : front) frontText += cat(x->total(), " ", x->imageError, "\n");
+    writeFileAtomic((data / "pareto.dat").string(), frontText);
+    // The cost of the solve against the patch count: the radiosity runs of the patch sweep.
+    std::vector<const Row*> solves;
+    for (const Row& x : r.rows)
+        if (x.setting.method == "radiosity" && (x.setting.sweep == "patches" || x.setting.sweep == "default")) solves.push_back(&x);
+    std::sort(solves.begin(), solves.end(), [](const Row* a, const Row* b) { return a->patchesMade < b->patchesMade; });
+    std::string cost = "# patches seconds_form_factors seconds_solve peak_memory_mib matrix_mib\n";
+    for (const Row* x : solves) cost += cat(x->patchesMade, " ", x->formFactors, " ", x->solve, " ", x->peakMiB, " ", x->matrixMiB, "\n");
+    writeFileAtomic((data / "cost.dat").string(), cost);
+    const double nMax = solves.empty() ? 1 : solves.back()->patchesMade;
+    const double c = solves.empty() ? 0 : solves.back()->formFactors / (nMax * nMax);
+
+    const std::string script = cat(
+        "# Made by penumbra bench; run from this folder: gnuplot plots.gp\n"
+        "set terminal pngcairo size 960,640 enhanced font 'sans,11'\n"
+        "set output 'error-time.png'\n"
+        "set logscale xy\nset grid\nset key top right box opaque\n"
+        "set xlabel 'wall seconds, scene file to image (", r.machine, ")'\n"
+        "set ylabel 'mean relative error after a 5x5 blur'\n"
+        "set format y '%g'\n"
+        "set title \"", r.scene, ": error against time at ", r.width, "x", r.height, " (reference: path tracer, ",
+        r.referenceSpp, " spp)\" noenhanced\n",
+        "plot 'plot-data/final-gather.dat' using 1:2 with points pt 7 ps 1.2 lc rgb '#d95f02' title 'radiosity + final gather', \\\n"
+        "     'plot-data/radiosity.dat' using 1:2 with points pt 5 ps 1.0 lc rgb '#1b9e77' title 'radiosity alone', \\\n"
+        "     'plot-data/path.dat' using 1:2 with linespoints pt 9 ps 1.2 lw 1.5 lc rgb '#7570b3' title 'path tracing', \\\n"
+        "     'plot-data/pareto.dat' using 1:2 with steps lw 2.5 dt 2 lc rgb 'black' title 'Pareto front (all methods)', \\\n"
+        "     'plot-data/pareto.dat' using 1:2 with points pt 6 ps 2 lw 1.5 lc rgb 'black' notitle\n"
+        "set output 'cost-patches.png'\n"
+        "set title \"", r.scene, ": cost of the matrix solve against the patch count\" noenhanced\n"
+        "set xlabel 'patches'\nset ylabel 'wall seconds'\nset y2label 'MiB'\n"
+        "set logscale y2\nset y2tics\nset ytics nomirror\nset key top left box opaque\n"
+        "plot 'plot-data/cost.dat' using 1:2 with linespoints pt 7 lw 2 lc rgb '#d95f02' title 'form factors (s)', \\\n"
+        "     'plot-data/cost.dat' using 1:3 with linespoints pt 5 lw 2 lc rgb '#1b9e77' title 'solve (s)', \\\n"
+        "     'plot-data/cost.dat' using 1:4 axes x1y2 with linespoints pt 9 lw 2 lc rgb '#7570b3' title 'peak memory (MiB, right)', \\\n"
+        "     'plot-data/cost.dat' using 1:5 axes x1y2 with linespoints pt 4 dt 3 lc rgb '#e7298a' title 'matrix n^2 x 4 bytes (MiB, right)', \\\n"
+        "     [x=50:", nMax * 1.5, "] ", c, " * x**2 with lines dt 2 lc rgb 'gray40' title 'n^2 through the largest form-factor time'\n");
+    writeFileAtomic((d / "plots.gp").string(), script);
+    if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) {
+        logWarning("gnuplot not found: no plots (install gnuplot-nox, or run `bash scripts/bootstrap.sh build`); ",
+                   "the script is ", (d / "plots.gp").string());
+        return false;
+    }
+    const std::string command = cat("cd '", d.string(), "' && gnuplot plots.gp");
+    if (std::system(command.c_str()) != 0) throw Error(cat("gnuplot failed on ", (d / "plots.gp").string()));
+    return true;
+}
+
+}  // namespace penumbra::bench

@@ -1,0 +1,492 @@
+// The sweep of `penumbra bench`: plans the runs, caches solves (and the path-traced reference on
+// disk), times every stage, and measures the machine's limits and thread scaling in the same run.
+#include "bench/trade.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "core/parallel.h"
+#include "core/progress.h"
+#include "core/timer.h"
+#include "io/atomic_file.h"
+#include "io/image_io.h"
+#include "render/final_gather.h"
+#include "render/image_metrics.h"
+#include "render/path_tracer.h"
+#include "render/photon_map.h"
+#include "render/radiosity_view.h"
+#include "solver/solve.h"
+#include "solver/tracer.h"
+
+namespace penumbra::bench {
+namespace {
+
+// The settings every sweep starts from: the command line's defaults (quick: smaller).
+struct Baseline {
+    int patches = MeshingOptions{}.targetPatches;
+    int visibilityRays = FormFactorSettings{}.visibilityRays;
+    double tolerance = SolverSettings{}.tolerance;
+    int64_t photons = PhotonSettings{}.photons;
+    int photonK = PhotonSettings{}.nearest;
+    int gatherRays = GatherSettings{}.gatherRays;
+    int spp = 16, radiositySpp = 16;
+};
+
+Baseline baselineFor(bool quick) {
+    Baseline b;
+    if (quick) {
+        b.patches = 500;
+        b.photons = 200000;
+        b.spp = 4;
+        b.radiositySpp = 4;
+    }
+    return b;
+}
+
+Setting baseSetting(const Baseline& b, const std::string& method, const std::string& sweep) {
+    return {method, sweep, b.patches, b.visibilityRays, b.tolerance, b.photons, b.photonK, b.gatherRays,
+            method == "radiosity" ? b.radiositySpp : b.spp};
+}
+
+// The runs, one setting varied at a time from the baseline, then in combinations, then the path tracer.
+std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b) {
+    std::vector<Setting> plan;
+    const bool specular = scene.hasSpecular();
+    plan.push_back(baseSetting(b, "final-gather", "default"));
+    plan.push_back(baseSetting(b, "radiosity", "default"));
+    const std::vector<int> patches = quick ? std::vector<int>{250, 1000} : std::vector<int>{250, 500, 1000, 2000, 4000, 8000, 16000};
+    for (int p : patches)
+        for (const char* method : {"final-gather", "radiosity"}) {
+            Setting s = baseSetting(b, method, "patches");
+            s.patches = p;
+            plan.push_back(s);
+        }
+    for (int v : quick ? std::vector<int>{1} : std::vector<int>{1, 16}) {
+        Setting s = baseSetting(b, "final-gather", "visibility-rays");
+        s.visibilityRays = v;
+        plan.push_back(s);
+    }
+    for (double t : quick ? std::vector<double>{1e-2} : std::vector<double>{1e-1, 1e-2, 1e-3, 1e-4})
+        for (const char* method : {"final-gather", "radiosity"}) {
+            Setting s = baseSetting(b, method, "tolerance");
+            s.tolerance = t;
+            plan.push_back(s);
+        }
+    if (specular) {   // photons matter only where there are mirrors or glass
+        for (int64_t n : quick ? std::vector<int64_t>{50000} : std::vector<int64_t>{10000, 100000, 4000000}) {
+            Setting s = baseSetting(b, "final-gather", "photons");
+            s.photons = n;
+            plan.push_back(s);
+        }
+        for (int k : quick ? std::vector<int>{25} : std::vector<int>{25, 400}) {
+            Setting s = baseSetting(b, "final-gather", "photon-k");
+            s.photonK = k;
+            plan.push_back(s);
+        }
+    }
+    for (int g : quick ? std::vector<int>{4} : std::vector<int>{4, 64}) {
+        Setting s = baseSetting(b, "final-gather", "gather-rays");
+        s.gatherRays = g;
+        plan.push_back(s);
+    }
+    for (int spp : quick ? std::vector<int>{1} : std::vector<int>{1, 4, 64}) {
+        Setting s = baseSetting(b, "final-gather", "spp");
+        s.spp = spp;
+        plan.push_back(s);
+    }
+    // Combinations along the diagonal: coarse and fast to fine and slow.
+    struct Combo {
+        int patches, spp, gatherRays;
+    };
+    for (const Combo& c : quick ? std::vector<Combo>{{250, 1, 4}}
+                                : std::vector<Combo>{{500, 4, 4}, {1000, 4, 8}, {2000, 16, 16}, {8000, 64, 32}}) {
+        Setting s = baseSetting(b, "final-gather", "combined");
+        s.patches = c.patches, s.spp = c.spp, s.gatherRays = c.gatherRays;
+        plan.push_back(s);
+    }
+    for (int spp : quick ? std::vector<int>{4, 16, 64} : std::vector<int>{4, 16, 64, 256, 1024}) {
+        Setting s = baseSetting(b, "path", "spp");
+        s.spp = spp;
+        plan.push_back(s);
+    }
+    return plan;
+}
+
+std::string describe(const Setting& s) {
+    if (s.method == "path") return cat("path tracer, ", s.spp, " spp");
+    std::string d = cat(s.method, ", ", s.patches, " patches");
+    if (s.visibilityRays != FormFactorSettings{}.visibilityRays) d += cat(", ", s.visibilityRays, " visibility rays");
+    if (s.tolerance != SolverSettings{}.tolerance) d += cat(", tolerance ", s.tolerance);
+    d += cat(", ", s.spp, " spp");
+    if (s.method == "final-gather") d += cat(", ", s.gatherRays, " gather rays");
+    return d;
+}
+
+std::string machineDescription() {
+    std::ifstream cpu("/proc/cpuinfo");
+    std::string line, model = "unknown processor";
+    while (std::getline(cpu, line))
+        if (line.rfind("model name", 0) == 0) {
+            model = line.substr(line.find(':') + 2);
+            break;
+        }
+    const double gib = double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE)) / double(1ull << 30);
+    std::ostringstream out;
+    out << sysconf(_SC_NPROCESSORS_ONLN) << " cores, " << int(gib + 0.5) << " GiB, " << model << ", "
+        << threadCount() << " threads";
+    return out.str();
+}
+
+std::string defaultCacheDir() {
+    if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg) return cat(xdg, "/penumbra");
+    if (const char* home = std::getenv("HOME"); home && *home) return cat(home, "/.cache/penumbra");
+    return (std::filesystem::temp_directory_path() / "penumbra-cache").string();
+}
+
+// A solve and what the views of it need, kept for the runs that share it (without its matrix).
+struct SolveRecord {
+    PatchSet patches;
+    std::vector<Rgb> B, display;
+    std::vector<std::array<Rgb, 4>> corners;
+    std::shared_ptr<RayScene> rays;
+    double meshing = 0, formFactors = 0, specular = 0, solve = 0, peakMiB = 0, matrixMiB = 0;
+    uint64_t rayCount = 0, formFactorRays = 0;
+    std::vector<Rgb> objectMean;   // area-weighted mean B per object
+};
+
+std::vector<Rgb> objectMeans(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& B) {
+    std::vector<Rgb> sum(scene.objects.size(), Rgb::Zero());
+    std::vector<double> area(scene.objects.size(), 0.0);
+    for (size_t i = 0; i < patches.size(); ++i) {
+        sum[size_t(patches.object[i])] += patches.area[i] * B[i];
+        area[size_t(patches.object[i])] += patches.area[i];
+    }
+    for (size_t o = 0; o < sum.size(); ++o) sum[o] /= std::max(area[o], 1e-300);
+    return sum;
+}
+
+// Relative error of each diffuse object's mean radiosity (all channels together) against the
+// reference solve's: {max, area-weighted mean} over the objects that receive light.
+std::pair<double, double> objectErrors(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& mean,
+                                       const std::vector<Rgb>& reference) {
+    std::vector<double> area(scene.objects.size(), 0.0);
+    for (size_t i = 0; i < patches.size(); ++i) area[size_t(patches.object[i])] += patches.area[i];
+    double worst = 0, weighted = 0, total = 0;
+    for (size_t o = 0; o < scene.objects.size(); ++o) {
+        if (scene.materialOf(scene.objects[o]).type != MaterialType::Diffuse || !(reference[o].sum() > 0)) continue;
+        const double e = std::abs(mean[o].sum() - reference[o].sum()) / reference[o].sum();
+        worst = std::max(worst, e);
+        weighted += area[o] * e;
+        total += area[o];
+    }
+    return {worst, total > 0 ? weighted / total : 0};
+}
+
+class Bench {
+public:
+    Bench(const BenchOptions& options, const Scene& scene)
+        : options_(options), scene_(scene), baseline_(baselineFor(options.quick)), userLevel_(logLevel()) {}
+
+    BenchResult run();
+
+private:
+    // Runs `f` with the stages' own logs and progress bars silenced (the bench draws its own).
+    template <typename F> auto quietly(const F& f) {
+        setLogLevel(userLevel_ == LogLevel::Debug ? LogLevel::Debug : std::max(userLevel_, LogLevel::Warning));
+        struct Restore {
+            LogLevel level;
+            ~Restore() { setLogLevel(level); }
+        } restore{userLevel_};
+        return f();
+    }
+    Camera camera() const;
+    const Image& reference(BenchResult& result);
+    const SolveRecord& solveFor(const Setting& s);
+    Row runOne(const Setting& s);
+    void measureLimits(BenchResult& result);
+    void measureThreads(BenchResult& result);
+
+    const BenchOptions& options_;
+    const Scene& scene_;
+    Baseline baseline_;
+    LogLevel userLevel_;
+    std::vector<Setting> plan_;
+    std::map<std::tuple<int, int, double>, std::unique_ptr<SolveRecord>> solves_;
+    PatchSet pathPatches_;
+    std::unique_ptr<SceneTracer> pathTracer_;
+    double pathSetupSeconds_ = 0;
+    Image reference_;
+    uint64_t lastRenderRays_ = 0;
+};
+
+Camera Bench::camera() const {
+    Camera c = scene_.camera;
+    if (options_.width > 0) {
+        c.width = options_.width;
+        c.height = options_.height;
+    } else {
+        const int w = options_.quick ? 64 : 256;
+        c.height = std::max(1, int(std::lround(double(w) * scene_.camera.height / scene_.camera.width)));
+        c.width = w;
+    }
+    return c;
+}
+
+const Image& Bench::reference(BenchResult& result) {
+    const Camera cam = camera();
+    const std::string dir = options_.cache.empty() ? defaultCacheDir() : options_.cache;
+    char name[160];
+    std::snprintf(name, sizeof name, "reference-%016llx-%dx%d-%dspp-seed%llu.exr",
+                  static_cast<unsigned long long>(scene_.fingerprint), cam.width, cam.height, result.referenceSpp,
+                  static_cast<unsigned long long>(options_.seed));
+    const std::string path = (std::filesystem::path(dir) / name).string();
+    if (std::filesystem::exists(path)) {
+        reference_ = readLinearImage(path);
+        if (reference_.width == cam.width && reference_.height == cam.height) {
+            logInfo("bench: path-traced reference from the cache: ", path);
+            return reference_;
+        }
+    }
+    logInfo("bench: rendering the path-traced reference (", result.referenceSpp, " spp at ", cam.width, "x", cam.height,
+            "), cached in ", path);
+    Timer timer;
+    reference_ = quietly([&] { return renderPath(*pathTracer_, cam, result.referenceSpp, mixSeed(options_.seed, 0x5EF)); });
+    result.referenceSeconds = timer.seconds();
+    ensureDirectory(dir);
+    writeLinearImage(reference_, path);
+    return reference_;
+}
+
+const SolveRecord& Bench::solveFor(const Setting& s) {
+    const auto key = std::make_tuple(s.patches, s.visibilityRays, s.tolerance);
+    if (auto it = solves_.find(key); it != solves_.end()) return *it->second;
+    // Every tolerance the plan asks of this mesh comes from one matrix: only the solve differs.
+    std::vector<double> tolerances{s.tolerance};
+    for (const Setting& p : plan_)
+        if (p.method != "path" && p.patches == s.patches && p.visibilityRays == s.visibilityRays &&
+            std::find(tolerances.begin(), tolerances.end(), p.tolerance) == tolerances.end())
+            tolerances.push_back(p.tolerance);
+    SolveOptions o;
+    o.meshing.targetPatches = s.patches;
+    o.formFactors.visibilityRays = s.visibilityRays;
+    o.formFactors.seed = options_.seed;
+    o.specular.seed = options_.seed;
+    o.solverSettings.tolerance = tolerances.front();
+    const uint64_t rays0 = raysCast();
+    resetPeakMemory();
+    SolveResult r = quietly([&] { return solveScene(scene_, o); });
+    const double peak = peakMemoryBytes() / (1 << 20);
+    const uint64_t rays = raysCast() - rays0;
+    auto keep = [&](double tolerance, const RadiositySolution& solution, double solveSeconds) {
+        auto rec = std::make_unique<SolveRecord>();
+        rec->patches = r.patches;
+        rec->B = solution.B;
+        rec->display = solution.display;
+        rec->corners = interpolateCorners(rec->patches, rec->display);
+        rec->rays = r.rays;
+        rec->meshing = r.secondsMeshing, rec->formFactors = r.secondsFormFactors, rec->specular = r.secondsSpecular;
+        rec->solve = solveSeconds;
+        rec->peakMiB = peak;
+        rec->matrixMiB = double(formFactorMatrixBytes(r.patches.size())) / (1 << 20);
+        rec->rayCount = rays;
+        rec->formFactorRays = r.F.stats.rays;
+        rec->objectMean = objectMeans(scene_, rec->patches, rec->B);
+        solves_[std::make_tuple(s.patches, s.visibilityRays, tolerance)] = std::move(rec);
+    };
+    keep(tolerances.front(), r.solution, r.secondsSolve);
+    const auto solver = makeSolver(r.solverName);
+    for (size_t k = 1; k < tolerances.size(); ++k) {
+        SolverSettings settings = o.solverSettings;
+        settings.tolerance = tolerances[k];
+        Timer timer;
+        const RadiositySolution solution = quietly([&] { return solver->solve(r.F, r.system, settings); });
+        keep(tolerances[k], solution, timer.seconds());
+    }
+    return *solves_.at(key);
+}
+
+Row Bench::runOne(const Setting& s) {
+    Row row;
+    row.setting = s;
+    const Camera cam = camera();
+    Image image;
+    if (s.method == "path") {
+        const uint64_t rays0 = raysCast();
+        resetPeakMemory();
+        Timer timer;
+        image = quietly([&] { return renderPath(*pathTracer_, cam, s.spp, options_.seed); });
+        row.render = timer.seconds();
+        row.meshing = pathSetupSeconds_;
+        row.patchesMade = int(pathPatches_.size());
+        row.rays = raysCast() - rays0;
+        row.peakMiB = peakMemoryBytes() / (1 << 20);
+    } else {
+        const SolveRecord& rec = solveFor(s);
+        row.patchesMade = int(rec.patches.size());
+        row.meshing = rec.meshing, row.formFactors = rec.formFactors, row.specular = rec.specular, row.solve = rec.solve;
+        row.matrixMiB = rec.matrixMiB;
+        const uint64_t rays0 = raysCast();
+        resetPeakMemory();
+        if (s.method == "radiosity") {
+            Timer timer;
+            image = quietly([&] {
+                return renderRadiosityView(scene_, cam, rec.patches, *rec.rays, rec.corners, {s.spp, options_.seed});
+            });
+            row.render = timer.seconds();
+        } else {
+            GatherSettings gather;
+            gather.gatherRays = s.gatherRays;
+            PhotonSettings photons;
+            photons.photons = s.photons;
+            photons.nearest = s.photonK;
+            Timer setup;
+            const auto solved = quietly([&] {
+                return std::make_unique<SolvedScene>(scene_, rec.patches, rec.display, gather, photons, options_.seed);
+            });
+            row.photons = setup.seconds();
+            const uint64_t rays1 = raysCast();
+            Timer timer;
+            image = quietly([&] { return solved->render(cam, s.spp, options_.seed); });
+            row.render = timer.seconds();
+            lastRenderRays_ = raysCast() - rays1;
+        }
+        row.rays = rec.rayCount + (raysCast() - rays0);
+        row.peakMiB = std::max(rec.peakMiB, peakMemoryBytes() / (1 << 20));
+    }
+    const ImageError blurred = compareBlurred(image, reference_), raw = compareImages(image, reference_);
+    row.imageError = blurred.meanRelative;
+    row.imageErrorRaw = raw.meanRelative;
+    row.rmse = raw.rmse;
+    return row;
+}
+
+void Bench::measureLimits(BenchResult& result) {
+    result.embree = measureEmbreeLimit(pathPatches_, options_.quick ? 1000000 : 4000000, options_.seed);
+    logInfo("bench: Embree alone on ", pathPatches_.size(), " patches, ", result.embree.threads, " threads: ",
+            result.embree.occluded1 / 1e6, " M occlusion rays/s (8-wide packets ", result.embree.occluded8 / 1e6,
+            " M/s), ", result.embree.intersect1 / 1e6, " M nearest-hit rays/s");
+    result.bandwidth = measureBandwidth(options_.quick ? 4000 : 16000, options_.seed);
+    const BandwidthLimit& b = result.bandwidth;
+    logInfo("bench: memory on a ", b.n, "^2 float matrix (", b.matrixBytes / (1 << 20), " MiB): read ", b.readGBs,
+            " GB/s, copy ", b.copyGBs, " GB/s; Jacobi sweep ", b.jacobiGBs, " GB/s, Gauss-Seidel sweep ",
+            b.gaussSeidelGBs, " GB/s");
+}
+
+void Bench::measureThreads(BenchResult& result) {
+    const int all = threadCount();
+    auto timed = [&](int threads, const auto& f) {
+        setThreadCount(threads);
+        Timer timer;
+        auto value = quietly(f);
+        return std::make_pair(timer.seconds(), std::move(value));
+    };
+    auto record = [&](const std::string& stage, const std::string& size, double one, double many, bool identical) {
+        result.threads.push_back({stage, size, one, many, all, identical});
+        logInfo("bench: ", stage, " (", size, "): ", one, " s on 1 thread, ", many, " s on ", all, " (x", one / many,
+                identical ? "), identical results" : "), results DIFFER");
+    };
+    {
+        const PatchSet patches = meshScene(scene_, {options_.quick ? 300 : 1500, 0});
+        const RayScene rays(patches);
+        FormFactorSettings settings;
+        settings.seed = options_.seed;
+        auto ff = [&] { return computeFormFactors(patches, rays, settings).dense(); };
+        const auto one = timed(1, ff), many = timed(all, ff);
+        record("form factors", cat(patches.size(), " patches"), one.first, many.first, one.second == many.second);
+    }
+    if (scene_.hasSpecular()) {
+        PhotonSettings settings;
+        settings.photons = options_.quick ? 200000 : 1000000;
+        settings.seed = options_.seed;
+        auto trace = [&] { return PhotonMap(*pathTracer_, settings).stats(); };
+        const auto one = timed(1, trace), many = timed(all, trace);
+        record("photon tracing", cat(settings.photons, " photons"), one.first, many.first,
+               one.second.stored == many.second.stored && (one.second.storedPower == many.second.storedPower).all());
+    }
+    const Camera cam = camera();
+    const SolveRecord& rec = solveFor(baseSetting(baseline_, "final-gather", "default"));
+    const SolvedScene solved(scene_, rec.patches, rec.display, {}, {}, options_.seed);
+    const int spp = options_.quick ? 1 : 4;
+    auto gather = [&] { return solved.render(cam, spp, options_.seed).rgb; };
+    const auto g1 = timed(1, gather), gn = timed(all, gather);
+    record("final gather", cat(cam.width, "x", cam.height, ", ", spp, " spp"), g1.first, gn.first, g1.second == gn.second);
+    auto path = [&] { return renderPath(*pathTracer_, cam, spp * 4, options_.seed).rgb; };
+    const auto p1 = timed(1, path), pn = timed(all, path);
+    record("path tracer", cat(cam.width, "x", cam.height, ", ", spp * 4, " spp"), p1.first, pn.first, p1.second == pn.second);
+    setThreadCount(all);
+}
+
+BenchResult Bench::run() {
+    BenchResult result;
+    result.scene = scene_.path;
+    result.machine = machineDescription();
+    const Camera cam = camera();
+    result.width = cam.width, result.height = cam.height;
+    result.referenceSpp = options_.referenceSpp > 0 ? options_.referenceSpp : options_.quick ? 1024 : 4096;
+    plan_ = planRuns(scene_, options_.quick, baseline_);
+    logInfo("bench: ", scene_.path, " at ", cam.width, "x", cam.height, ", ", plan_.size(), " runs on ", result.machine);
+
+    Timer setup;
+    pathPatches_ = meshScene(scene_, MeshingOptions{});
+    pathTracer_ = std::make_unique<SceneTracer>(scene_, pathPatches_);
+    pathSetupSeconds_ = setup.seconds();
+    reference(result);
+
+    Progress progress("bench", int64_t(plan_.size()) + 2);
+    std::vector<const SolveRecord*> records;
+    for (size_t k = 0; k < plan_.size(); ++k) {
+        const Setting& s = plan_[k];
+        result.rows.push_back(runOne(s));
+        records.push_back(s.method == "path" ? nullptr : &solveFor(s));
+        const Row& row = result.rows.back();
+        if (s.method == "final-gather" && s.sweep == "default") {
+            result.gatherRays = double(lastRenderRays_);
+            result.gatherSeconds = row.render;
+            const SolveRecord& rec = *records.back();
+            result.formFactorRays = double(rec.formFactorRays);
+            result.formFactorSeconds = rec.formFactors;
+        }
+        logInfo("bench: [", k + 1, "/", plan_.size(), "] ", describe(s), ": ", row.total(), " s, error ",
+                100 * row.imageError, "%");
+        progress.update();
+    }
+    // Radiosity per object against the finest solve of the sweep (whose own rows have none).
+    const SolveRecord* finest = nullptr;
+    for (const auto& [key, rec] : solves_)
+        if (!finest || rec->patches.size() > finest->patches.size()) finest = rec.get();
+    for (size_t k = 0; k < result.rows.size(); ++k) {
+        if (!records[k] || !finest || records[k]->patches.size() == finest->patches.size()) continue;
+        const auto [worst, mean] = objectErrors(scene_, records[k]->patches, records[k]->objectMean, finest->objectMean);
+        result.rows[k].objectErrorMax = worst;
+        result.rows[k].objectErrorMean = mean;
+    }
+    markPareto(result.rows);
+
+    measureLimits(result);
+    progress.update();
+    measureThreads(result);
+    progress.done();
+    return result;
+}
+
+}  // namespace
+
+BenchResult runBench(const BenchOptions& options) {
+    const Scene scene = loadScene(options.scene);
+    if (!scene.hasCamera)
+        throw Error(cat(scene.path, ": camera: the bench measures image error from the scene's camera; add a camera"));
+    if (!scene.hasEmitter()) throw Error(cat(scene.path, ": the scene emits no light: nothing to measure"));
+    Bench bench(options, scene);
+    return bench.run();
+}
+
+}  // namespace penumbra::bench

@@ -1,0 +1,85 @@
+// `penumbra bench`: the speed-accuracy trade of a scene, measured. Sweeps the settings that buy
+// accuracy with time (patches, form-factor rays, solver tolerance, photons and k, gather rays,
+// pixel samples, and the path tracer's samples), one at a time and in combinations, and measures
+// each run's stage times, peak memory, rays and error against references that do not depend on the
+// setting swept: a converged path-traced image (cached on disk) and, for the solve alone, the
+// finest solve of the sweep. In the same run it measures this machine's limits (Embree alone,
+// memory bandwidth) and the thread scaling, so speeds are stated as ratios.
+// Writes DIR/trade.csv, DIR/bench.json, DIR/summary.md, DIR/error-time.png, DIR/cost-patches.png.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "bench/limits.h"
+
+namespace penumbra::bench {
+
+struct BenchOptions {
+    std::string scene, out;
+    std::string cache;       // folder of cached reference images ("": $XDG_CACHE_HOME or ~/.cache, /penumbra)
+    bool quick = false;      // a one-minute version: fewer, smaller runs
+    int width = 0, height = 0;   // 0: 256 pixels wide (quick: 64), the camera's aspect
+    int referenceSpp = 0;    // 0: 4096 (quick: 1024)
+    uint64_t seed = 1;
+};
+
+// One setting of the sweep. `method`: "final-gather" (radiosity + final gather), "radiosity" (the
+// plain radiosity view) or "path" (the path tracer); `sweep` names the setting varied.
+struct Setting {
+    std::string method, sweep;
+    int patches = 0, visibilityRays = 0;
+    double tolerance = 0;
+    int64_t photons = 0;
+    int photonK = 0, gatherRays = 0, spp = 0;
+};
+
+// What one run cost and how close it came. Seconds are wall seconds of producing the image from
+// nothing: a run that reuses an earlier solve still counts that solve's stages.
+struct Row {
+    Setting setting;
+    int patchesMade = 0;
+    double meshing = 0, formFactors = 0, specular = 0, solve = 0, photons = 0, render = 0;
+    double total() const { return meshing + formFactors + specular + solve + photons + render; }
+    double solveTotal() const { return meshing + formFactors + specular + solve; }
+    double peakMiB = 0;          // peak resident memory during the run's own stages
+    double matrixMiB = 0;
+    uint64_t rays = 0;           // rays cast by the run's stages (solve + render)
+    double imageError = 0;       // mean relative error after a 5x5 box blur, against the reference
+    double imageErrorRaw = 0, rmse = 0;
+    double objectErrorMax = -1, objectErrorMean = -1;   // radiosity per object against the finest solve; -1: none
+    bool pareto = false;
+};
+
+// Stage speed-up from one thread to all of them, and whether the results were identical.
+struct ThreadScaling {
+    std::string stage, size;
+    double oneThread = 0, allThreads = 0;   // seconds
+    int threads = 0;
+    bool identical = false;
+};
+
+struct BenchResult {
+    std::string scene, machine;
+    int width = 0, height = 0, referenceSpp = 0;
+    double referenceSeconds = 0;   // 0 when read from the cache
+    std::vector<Row> rows;
+    EmbreeLimit embree;
+    BandwidthLimit bandwidth;
+    std::vector<ThreadScaling> threads;
+    // The form-factor and final-gather rates of the default settings, rays per second.
+    double formFactorRays = 0, formFactorSeconds = 0, gatherRays = 0, gatherSeconds = 0;
+};
+
+BenchResult runBench(const BenchOptions& options);
+
+// Files from a result (summary.cpp): trade.csv, bench.json, summary.md and the plots.
+void markPareto(std::vector<Row>& rows);
+std::string tradeCsv(const std::vector<Row>& rows);
+std::string summaryMarkdown(const BenchResult& result);
+std::string benchJson(const BenchResult& result);
+// Writes the gnuplot script and runs it; returns false (after a warning) when gnuplot is missing.
+bool writePlots(const BenchResult& result, const std::string& dir);
+
+}  // namespace penumbra::bench
