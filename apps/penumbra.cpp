@@ -317,6 +317,9 @@ int main(int argc, char** argv) {
         ->capture_default_str()->check(CLI::Range(int64_t(1), int64_t(1) << 34));
     renderCmd->add_option("--photon-k", render.photons.nearest, "Photons per caustic density estimate")
         ->capture_default_str()->check(CLI::Range(1, 100000));
+    renderCmd->add_option("--photon-precompute", render.photons.precompute,
+                          "Precompute the caustic estimate at every Nth stored photon (0: estimate at every lookup)")
+        ->capture_default_str()->check(CLI::Range(0, 1000000));
     renderCmd->add_option("--max-depth", render.gather.maxSpecularDepth, "Mirror and glass bounces per path")
         ->capture_default_str()->check(CLI::Range(0, 1000));
     renderCmd->add_option("--resolution", render.resolution, "WIDTHxHEIGHT, overrides the camera's");

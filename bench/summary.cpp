@@ -14,6 +14,8 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "io/atomic_file.h"
+#include "render/photon_map.h"
+#include "solver/solve.h"
 
 namespace penumbra::bench {
 namespace {
@@ -22,21 +24,6 @@ const char* methodTitle(const std::string& method) {
     if (method == "final-gather") return "radiosity + final gather";
     if (method == "radiosity") return "radiosity alone";
     return "path tracing";
-}
-
-std::string settingText(const Setting& s) {
-    if (s.method == "path") return cat(s.spp, " spp");
-    std::string t = cat(s.patches, " patches");
-    if (s.visibilityRays != 4) t += cat(", ", s.visibilityRays, " vis. rays");
-    if (s.tolerance != 1e-6) t += cat(", tol ", s.tolerance);
-    if (s.method == "final-gather") {
-        t += cat(", ", s.spp, " spp, ", s.gatherRays, " gather rays");
-        if (s.photons != 1000000) t += cat(", ", s.photons, " photons");
-        if (s.photonK != 100) t += cat(", k ", s.photonK);
-    } else {
-        t += cat(", ", s.spp, " spp");
-    }
-    return t;
 }
 
 std::string fixed(double v, int digits) {
@@ -90,6 +77,17 @@ PathTime pathTimeFor(const std::vector<Row>& rows, double error) {
     return {f.secondsFor(error), false, true};
 }
 
+// The reference image's own error, from the path run with the most samples N against the reference
+// of R samples: err^2 = e_N^2 + e_R^2 with e_N^2 = e_R^2 R / N (variance falls as 1/samples).
+double referenceNoise(const BenchResult& r) {
+    const Row* most = nullptr;
+    for (const Row& x : r.rows)
+        if (x.setting.method == "path" && (!most || x.setting.spp > most->setting.spp)) most = &x;
+    if (!most) return 0;
+    const double ratio = double(r.referenceSpp) / most->setting.spp;
+    return most->imageError / std::sqrt(ratio + 1);
+}
+
 struct Targets {
     double error = 0.02;
     const Row* gather = nullptr;   // cheapest final gather at 2%
@@ -115,6 +113,21 @@ Targets targetsOf(const BenchResult& r) {
 
 }  // namespace
 
+std::string settingText(const Setting& s) {
+    if (s.method == "path") return cat(s.spp, " spp");
+    std::string t = cat(s.patches, " patches");
+    if (s.visibilityRays != FormFactorSettings{}.visibilityRays) t += cat(", ", s.visibilityRays, " vis. rays");
+    if (s.ffTolerance != CubatureSettings{}.tolerance) t += cat(", FF tol ", s.ffTolerance);
+    if (s.tolerance != SolverSettings{}.tolerance) t += cat(", tol ", s.tolerance);
+    t += cat(", ", s.spp, " spp");
+    if (s.method == "final-gather") {
+        t += cat(", ", s.gatherRays, " gather rays");
+        if (s.photons != PhotonSettings{}.photons) t += cat(", ", s.photons, " photons");
+        if (s.photonK != PhotonSettings{}.nearest) t += cat(", k ", s.photonK);
+    }
+    return t;
+}
+
 void markPareto(std::vector<Row>& rows) {
     for (Row& r : rows) {
         r.pareto = true;
@@ -129,7 +142,7 @@ void markPareto(std::vector<Row>& rows) {
 
 std::string tradeCsv(const std::vector<Row>& rows) {
     std::string csv =
-        "method,sweep,patches_asked,patches,visibility_rays,tolerance,photons,photon_k,gather_rays,spp,"
+        "method,sweep,patches_asked,patches,visibility_rays,ff_tolerance,tolerance,photons,photon_k,gather_rays,spp,"
         "seconds_meshing,seconds_form_factors,seconds_specular,seconds_solve,seconds_photons,seconds_render,"
         "seconds_total,peak_memory_mib,matrix_mib,rays,image_error_blurred,image_error_raw,rmse,"
         "object_error_max,object_error_mean,pareto\n";
@@ -138,7 +151,7 @@ std::string tradeCsv(const std::vector<Row>& rows) {
         const Setting& s = r.setting;
         const bool path = s.method == "path";
         csv += cat(s.method, ",", s.sweep, ",", path ? "" : cat(s.patches), ",", r.patchesMade, ",",
-                   path ? "" : cat(s.visibilityRays), ",", path ? "" : cat(s.tolerance), ",",
+                   path ? "" : cat(s.visibilityRays), ",", path ? "" : cat(s.ffTolerance), ",", path ? "" : cat(s.tolerance), ",",
                    s.method == "final-gather" ? cat(s.photons) : "", ",", s.method == "final-gather" ? cat(s.photonK) : "",
                    ",", s.method == "final-gather" ? cat(s.gatherRays) : "", ",", s.spp, ",", r.meshing, ",",
                    r.formFactors, ",", r.specular, ",", r.solve, ",", r.photons, ",", r.render, ",", r.total(), ",",
@@ -180,6 +193,10 @@ std::string summaryMarkdown(const BenchResult& r) {
     if (fit.ok)
         md += cat("Path tracer: error = ", fixed(fit.a, 4), " x seconds^", fixed(fit.b, 3),
                   " fitted over its runs (the Monte Carlo rate is ^-0.5).\n\n");
+    if (const double noise = referenceNoise(r); noise > 0)
+        md += cat("The reference's own noise is about ", percent(noise),
+                  " (the error of the path tracer's most sampled run, which has noise independent of the reference's, "
+                  "taken apart by the 1/samples law of variances): errors near it are at the floor this reference can see.\n\n");
     if (t.gather && t.path.known)
         md += cat("- One image at 2%: radiosity + final gather ", fixed(t.gather->total(), 2), " s (",
                   settingText(t.gather->setting), ", error ", percent(t.gather->imageError), "); path tracer ",
@@ -219,8 +236,8 @@ std::string summaryMarkdown(const BenchResult& r) {
               " ms) | read stream ", fixed(b.readGBs, 1), " GB/s | ", percent(b.jacobiGBs / b.readGBs), " |\n");
     md += cat("| Jacobi sweep against a copy | | copy ", fixed(b.copyGBs, 1), " GB/s | ", percent(b.jacobiGBs / b.copyGBs), " |\n");
     md += cat("| Gauss-Seidel sweep (1 thread, sequential) | ", fixed(b.gaussSeidelGBs, 1), " GB/s (",
-              fixed(b.gaussSeidelSeconds * 1e3, 1), " ms) | read stream ", fixed(b.readGBs, 1), " GB/s | ",
-              percent(b.gaussSeidelGBs / b.readGBs), " |\n");
+              fixed(b.gaussSeidelSeconds * 1e3, 1), " ms) | read stream on 1 thread ", fixed(b.readGBs1, 1), " GB/s | ",
+              percent(b.gaussSeidelGBs / b.readGBs1), " |\n");
 
     md += "\n## Threads\n\n| stage | size | 1 thread (s) | all threads (s) | speed-up | results identical |\n|---|---|---|---|---|---|\n";
     for (const ThreadScaling& s : r.threads)
@@ -248,7 +265,7 @@ std::string benchJson(const BenchResult& r) {
     j["embree"] = {{"threads", r.embree.threads}, {"rays", r.embree.rays}, {"occluded1_rays_per_s", r.embree.occluded1},
                    {"occluded8_rays_per_s", r.embree.occluded8}, {"intersect1_rays_per_s", r.embree.intersect1}};
     const BandwidthLimit& b = r.bandwidth;
-    j["bandwidth"] = {{"n", b.n}, {"threads", b.threads}, {"read_gb_per_s", b.readGBs}, {"copy_gb_per_s", b.copyGBs},
+    j["bandwidth"] = {{"n", b.n}, {"threads", b.threads}, {"read_gb_per_s", b.readGBs}, {"read_gb_per_s_one_thread", b.readGBs1}, {"copy_gb_per_s", b.copyGBs},
                       {"jacobi_gb_per_s", b.jacobiGBs}, {"gauss_seidel_gb_per_s", b.gaussSeidelGBs},
                       {"jacobi_over_read", b.jacobiGBs / b.readGBs}};
     if (r.formFactorSeconds > 0)
@@ -272,6 +289,7 @@ std::string benchJson(const BenchResult& r) {
     if (t.gather && t.path.known) targets["speedup"] = t.path.seconds / t.gather->total();
     if (t.orbit && t.path.known) targets["orbit36_ratio"] = t.orbitSeconds / t.orbitPathSeconds;
     if (t.view) targets["radiosity_view_over_solve"] = t.view->render / t.view->solveTotal();
+    targets["reference_noise"] = referenceNoise(r);
     j["targets"] = targets;
     return j.dump(2) + "\n";
 }

@@ -34,11 +34,12 @@ namespace {
 struct Baseline {
     int patches = MeshingOptions{}.targetPatches;
     int visibilityRays = FormFactorSettings{}.visibilityRays;
+    double ffTolerance = CubatureSettings{}.tolerance;
     double tolerance = SolverSettings{}.tolerance;
     int64_t photons = PhotonSettings{}.photons;
     int photonK = PhotonSettings{}.nearest;
     int gatherRays = GatherSettings{}.gatherRays;
-    int spp = 16, radiositySpp = 16;
+    int spp = 16, radiositySpp = 4;   // render's defaults
 };
 
 Baseline baselineFor(bool quick) {
@@ -47,88 +48,62 @@ Baseline baselineFor(bool quick) {
         b.patches = 500;
         b.photons = 200000;
         b.spp = 4;
-        b.radiositySpp = 4;
     }
     return b;
 }
 
 Setting baseSetting(const Baseline& b, const std::string& method, const std::string& sweep) {
-    return {method, sweep, b.patches, b.visibilityRays, b.tolerance, b.photons, b.photonK, b.gatherRays,
+    return {method, sweep, b.patches, b.visibilityRays, b.ffTolerance, b.tolerance, b.photons, b.photonK, b.gatherRays,
             method == "radiosity" ? b.radiositySpp : b.spp};
+}
+
+// Adds one run per value and method: the baseline with one setting changed by `set`.
+template <typename T, typename Set>
+void vary(std::vector<Setting>& plan, const Baseline& b, std::initializer_list<const char*> methods, const char* sweep,
+          const std::vector<T>& values, const Set& set) {
+    for (const T& v : values)
+        for (const char* method : methods) {
+            Setting s = baseSetting(b, method, sweep);
+            set(s, v);
+            plan.push_back(s);
+        }
 }
 
 // The runs, one setting varied at a time from the baseline, then in combinations, then the path tracer.
 std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b) {
+    using Ints = std::vector<int>;
     std::vector<Setting> plan;
-    const bool specular = scene.hasSpecular();
-    plan.push_back(baseSetting(b, "final-gather", "default"));
-    plan.push_back(baseSetting(b, "radiosity", "default"));
-    const std::vector<int> patches = quick ? std::vector<int>{250, 1000} : std::vector<int>{250, 500, 1000, 2000, 4000, 8000, 16000};
-    for (int p : patches)
-        for (const char* method : {"final-gather", "radiosity"}) {
-            Setting s = baseSetting(b, method, "patches");
-            s.patches = p;
-            plan.push_back(s);
-        }
-    for (int v : quick ? std::vector<int>{1} : std::vector<int>{1, 16}) {
-        Setting s = baseSetting(b, "final-gather", "visibility-rays");
-        s.visibilityRays = v;
-        plan.push_back(s);
+    const auto both = {"final-gather", "radiosity"};
+    const auto gather = {"final-gather"};
+    vary(plan, b, both, "default", Ints{0}, [](Setting&, int) {});
+    vary(plan, b, both, "patches", quick ? Ints{250, 1000} : Ints{250, 500, 1000, 2000, 4000, 8000, 16000},
+         [](Setting& s, int v) { s.patches = v; });
+    vary(plan, b, gather, "visibility-rays", quick ? Ints{1} : Ints{1, 16}, [](Setting& s, int v) { s.visibilityRays = v; });
+    vary(plan, b, both, "ff-tolerance", quick ? std::vector<double>{1e-3} : std::vector<double>{1e-3, 1e-4},
+         [](Setting& s, double v) { s.ffTolerance = v; });
+    vary(plan, b, both, "tolerance", quick ? std::vector<double>{1e-2} : std::vector<double>{1e-1, 1e-2, 1e-3, 1e-4},
+         [](Setting& s, double v) { s.tolerance = v; });
+    if (scene.hasSpecular()) {   // photons matter only where there are mirrors or glass
+        vary(plan, b, gather, "photons", quick ? std::vector<int64_t>{50000} : std::vector<int64_t>{10000, 100000, 4000000},
+             [](Setting& s, int64_t v) { s.photons = v; });
+        vary(plan, b, gather, "photon-k", quick ? Ints{25} : Ints{25, 400}, [](Setting& s, int v) { s.photonK = v; });
     }
-    for (double t : quick ? std::vector<double>{1e-2} : std::vector<double>{1e-1, 1e-2, 1e-3, 1e-4})
-        for (const char* method : {"final-gather", "radiosity"}) {
-            Setting s = baseSetting(b, method, "tolerance");
-            s.tolerance = t;
-            plan.push_back(s);
-        }
-    if (specular) {   // photons matter only where there are mirrors or glass
-        for (int64_t n : quick ? std::vector<int64_t>{50000} : std::vector<int64_t>{10000, 100000, 4000000}) {
-            Setting s = baseSetting(b, "final-gather", "photons");
-            s.photons = n;
-            plan.push_back(s);
-        }
-        for (int k : quick ? std::vector<int>{25} : std::vector<int>{25, 400}) {
-            Setting s = baseSetting(b, "final-gather", "photon-k");
-            s.photonK = k;
-            plan.push_back(s);
-        }
-    }
-    for (int g : quick ? std::vector<int>{4} : std::vector<int>{4, 64}) {
-        Setting s = baseSetting(b, "final-gather", "gather-rays");
-        s.gatherRays = g;
-        plan.push_back(s);
-    }
-    for (int spp : quick ? std::vector<int>{1} : std::vector<int>{1, 4, 64}) {
-        Setting s = baseSetting(b, "final-gather", "spp");
-        s.spp = spp;
-        plan.push_back(s);
-    }
-    // Combinations along the diagonal: coarse and fast to fine and slow.
+    vary(plan, b, gather, "gather-rays", quick ? Ints{4} : Ints{4, 64}, [](Setting& s, int v) { s.gatherRays = v; });
+    vary(plan, b, gather, "spp", quick ? Ints{1} : Ints{1, 4, 8, 64}, [](Setting& s, int v) { s.spp = v; });
+    vary(plan, b, {"radiosity"}, "spp", quick ? Ints{16} : Ints{1, 16}, [](Setting& s, int v) { s.spp = v; });
+    // Combinations along the diagonal, coarse and fast to fine and slow: (patches, spp, gather rays),
+    // the fast ones with a looser cubature (the gather reads B one bounce later, where its error fades).
     struct Combo {
         int patches, spp, gatherRays;
+        double ffTolerance;
     };
-    for (const Combo& c : quick ? std::vector<Combo>{{250, 1, 4}}
-                                : std::vector<Combo>{{500, 4, 4}, {1000, 4, 8}, {2000, 16, 16}, {8000, 64, 32}}) {
-        Setting s = baseSetting(b, "final-gather", "combined");
-        s.patches = c.patches, s.spp = c.spp, s.gatherRays = c.gatherRays;
-        plan.push_back(s);
-    }
-    for (int spp : quick ? std::vector<int>{4, 16, 64} : std::vector<int>{4, 16, 64, 256, 1024}) {
-        Setting s = baseSetting(b, "path", "spp");
-        s.spp = spp;
-        plan.push_back(s);
-    }
+    vary(plan, b, gather, "combined",
+         quick ? std::vector<Combo>{{250, 1, 4, 1e-3}}
+               : std::vector<Combo>{{500, 4, 8, 1e-3}, {1000, 4, 8, 1e-3}, {1000, 8, 8, 1e-3}, {1000, 8, 16, 1e-3},
+                                    {2000, 16, 16, 1e-4}, {8000, 64, 32, 1e-5}},
+         [](Setting& s, const Combo& c) { s.patches = c.patches, s.spp = c.spp, s.gatherRays = c.gatherRays, s.ffTolerance = c.ffTolerance; });
+    vary(plan, b, {"path"}, "spp", quick ? Ints{4, 16, 64} : Ints{4, 16, 64, 256, 1024, 2048}, [](Setting& s, int v) { s.spp = v; });
     return plan;
-}
-
-std::string describe(const Setting& s) {
-    if (s.method == "path") return cat("path tracer, ", s.spp, " spp");
-    std::string d = cat(s.method, ", ", s.patches, " patches");
-    if (s.visibilityRays != FormFactorSettings{}.visibilityRays) d += cat(", ", s.visibilityRays, " visibility rays");
-    if (s.tolerance != SolverSettings{}.tolerance) d += cat(", tolerance ", s.tolerance);
-    d += cat(", ", s.spp, " spp");
-    if (s.method == "final-gather") d += cat(", ", s.gatherRays, " gather rays");
-    return d;
 }
 
 std::string machineDescription() {
@@ -220,7 +195,7 @@ private:
     Baseline baseline_;
     LogLevel userLevel_;
     std::vector<Setting> plan_;
-    std::map<std::tuple<int, int, double>, std::unique_ptr<SolveRecord>> solves_;
+    std::map<std::tuple<int, int, double, double>, std::unique_ptr<SolveRecord>> solves_;
     PatchSet pathPatches_;
     std::unique_ptr<SceneTracer> pathTracer_;
     double pathSetupSeconds_ = 0;
@@ -267,17 +242,18 @@ const Image& Bench::reference(BenchResult& result) {
 }
 
 const SolveRecord& Bench::solveFor(const Setting& s) {
-    const auto key = std::make_tuple(s.patches, s.visibilityRays, s.tolerance);
+    const auto key = std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.tolerance);
     if (auto it = solves_.find(key); it != solves_.end()) return *it->second;
     // Every tolerance the plan asks of this mesh comes from one matrix: only the solve differs.
     std::vector<double> tolerances{s.tolerance};
     for (const Setting& p : plan_)
-        if (p.method != "path" && p.patches == s.patches && p.visibilityRays == s.visibilityRays &&
+        if (p.method != "path" && p.patches == s.patches && p.visibilityRays == s.visibilityRays && p.ffTolerance == s.ffTolerance &&
             std::find(tolerances.begin(), tolerances.end(), p.tolerance) == tolerances.end())
             tolerances.push_back(p.tolerance);
     SolveOptions o;
     o.meshing.targetPatches = s.patches;
     o.formFactors.visibilityRays = s.visibilityRays;
+    o.formFactors.cubature.tolerance = s.ffTolerance;
     o.formFactors.seed = options_.seed;
     o.specular.seed = options_.seed;
     o.solverSettings.tolerance = tolerances.front();
@@ -300,7 +276,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
         rec->rayCount = rays;
         rec->formFactorRays = r.F.stats.rays;
         rec->objectMean = objectMeans(scene_, rec->patches, rec->B);
-        solves_[std::make_tuple(s.patches, s.visibilityRays, tolerance)] = std::move(rec);
+        solves_[std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, tolerance)] = std::move(rec);
     };
     keep(tolerances.front(), r.solution, r.secondsSolve);
     const auto solver = makeSolver(r.solverName);
@@ -455,7 +431,7 @@ BenchResult Bench::run() {
             result.formFactorRays = double(rec.formFactorRays);
             result.formFactorSeconds = rec.formFactors;
         }
-        logInfo("bench: [", k + 1, "/", plan_.size(), "] ", describe(s), ": ", row.total(), " s, error ",
+        logInfo("bench: [", k + 1, "/", plan_.size(), "] ", cat(s.method, ", ", settingText(s)), ": ", row.total(), " s, error ",
                 100 * row.imageError, "%");
         progress.update();
     }

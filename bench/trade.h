@@ -30,7 +30,8 @@ struct BenchOptions {
 struct Setting {
     std::string method, sweep;
     int patches = 0, visibilityRays = 0;
-    double tolerance = 0;
+    double ffTolerance = 0;   // the form-factor cubature's target error
+    double tolerance = 0;     // the solver's
     int64_t photons = 0;
     int photonK = 0, gatherRays = 0, spp = 0;
 };
@@ -73,6 +74,9 @@ struct BenchResult {
 };
 
 BenchResult runBench(const BenchOptions& options);
+
+// A setting in a few words ("1000 patches, 8 spp, 16 gather rays"): what differs from the defaults.
+std::string settingText(const Setting& s);
 
 // Files from a result (summary.cpp): trade.csv, bench.json, summary.md and the plots.
 void markPareto(std::vector<Row>& rows);

@@ -17,25 +17,33 @@ struct Photon {
     Eigen::Vector3f power;    // W per channel
 };
 
-// nanoflann's view of the photon array.
-struct PhotonCloud {
-    std::vector<Photon> photons;
-    size_t kdtree_get_point_count() const { return photons.size(); }
-    float kdtree_get_pt(size_t i, size_t d) const { return photons[i].position[Eigen::Index(d)]; }
+// The estimate precomputed at a stored photon, valid within sqrt(radius2) of it.
+struct IrradiancePoint {
+    Eigen::Vector3f position, normal, irradiance;
+    float radius2;
+};
+
+// nanoflann's view of an array of photons or of precomputed points.
+template <typename Point> struct PointCloud {
+    std::vector<Point> points;
+    size_t kdtree_get_point_count() const { return points.size(); }
+    float kdtree_get_pt(size_t i, size_t d) const { return points[i].position[Eigen::Index(d)]; }
     template <class Box>
     bool kdtree_get_bbox(Box&) const { return false; }
 };
-
-using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PhotonCloud>, PhotonCloud, 3,
-                                                 uint32_t>;
+template <typename Point>
+using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointCloud<Point>>,
+                                                   PointCloud<Point>, 3, uint32_t>;
 
 constexpr int64_t kChunk = 4096;   // photons per work item; the merge order is the chunk order
 
 }  // namespace
 
 struct PhotonMap::Impl {
-    PhotonCloud cloud;
-    std::unique_ptr<Tree> tree;
+    PointCloud<Photon> cloud;
+    std::unique_ptr<KdTree<Photon>> tree;
+    PointCloud<IrradiancePoint> precomputed;
+    std::unique_ptr<KdTree<IrradiancePoint>> precomputedTree;
 };
 
 PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
@@ -83,13 +91,27 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
     for (size_t c = 0; c < stored.size(); ++c) {
         stats_.emittedPower += emitted[c];
         for (const Photon& p : stored[c]) {
-            impl_->cloud.photons.push_back(p);
+            impl_->cloud.points.push_back(p);
             stats_.storedPower += p.power.cast<double>().array();
         }
     }
     stats_.emitted = n;
-    stats_.stored = int64_t(impl_->cloud.photons.size());
-    impl_->tree = std::make_unique<Tree>(3, impl_->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+    stats_.stored = int64_t(impl_->cloud.points.size());
+    impl_->tree = std::make_unique<KdTree<Photon>>(3, impl_->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+    if (settings.precompute > 0 && !impl_->cloud.points.empty()) {
+        const size_t stride = size_t(settings.precompute), count = (impl_->cloud.points.size() + stride - 1) / stride;
+        impl_->precomputed.points.resize(count);
+        parallelFor(int64_t(count), [&](int64_t b, int64_t e) {
+            for (int64_t k = b; k < e; ++k) {
+                const Photon& p = impl_->cloud.points[size_t(k) * stride];
+                double radius = 0;
+                const Rgb E = estimate(p.position.cast<double>(), p.normal.cast<double>(), &radius);
+                impl_->precomputed.points[size_t(k)] = {p.position, p.normal, E.matrix().cast<float>(), float(radius * radius)};
+            }
+        }, 256);
+        impl_->precomputedTree =
+            std::make_unique<KdTree<IrradiancePoint>>(3, impl_->precomputed, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+    }
     stats_.seconds = timer.seconds();
     logInfo("caustic photons: ", stats_.stored, " stored of ", stats_.emitted, " emitted (", stats_.storedPower.sum(),
             " W of ", stats_.emittedPower.sum(), " W) in ", stats_.seconds, " s");
@@ -98,7 +120,35 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
 PhotonMap::~PhotonMap() = default;
 
 Rgb PhotonMap::irradiance(const Vec3& x, const Vec3& n) const {
-    if (impl_->cloud.photons.empty()) return Rgb::Zero();
+    if (!impl_->precomputedTree) return estimate(x, n);
+    // The nearest precomputed point on a surface facing the same way, if x lies within its disc:
+    // first the nearest alone (the usual case, and the cheapest search), then a few more where it
+    // lies on a surface facing elsewhere (a corner).
+    const Eigen::Vector3f q = x.cast<float>(), nf = n.cast<float>();
+    for (size_t candidates : {size_t(1), size_t(8)}) {
+        uint32_t index[8];
+        float dist2[8];
+        nanoflann::KNNResultSet<float, uint32_t> result(candidates);
+        result.init(index, dist2);
+        dist2[candidates - 1] = float(maxRadius_ * maxRadius_);
+        impl_->precomputedTree->findNeighbors(result, q.data(), nanoflann::SearchParams());
+        bool facingElsewhere = false;
+        for (size_t i = 0; i < result.size(); ++i) {
+            const IrradiancePoint& p = impl_->precomputed.points[index[i]];
+            if (p.normal.dot(nf) < 0.9f) {
+                facingElsewhere = true;
+                continue;
+            }
+            if (dist2[i] <= p.radius2) return p.irradiance.cast<double>().array();
+        }
+        if (!facingElsewhere) break;
+    }
+    return Rgb::Zero();
+}
+
+Rgb PhotonMap::estimate(const Vec3& x, const Vec3& n, double* radius) const {
+    if (radius) *radius = 0;
+    if (impl_->cloud.points.empty()) return Rgb::Zero();
     const size_t k = size_t(nearest_);
     // Called at every shading point: the result buffers live with the thread, not the call.
     thread_local std::vector<uint32_t> index;
@@ -117,12 +167,13 @@ Rgb PhotonMap::irradiance(const Vec3& x, const Vec3& n) const {
     const double r2 = found == k ? double(dist2[k - 1]) : maxRadius_ * maxRadius_;
     if (r2 <= 0) return Rgb::Zero();
     const double r = std::sqrt(r2);
+    if (radius) *radius = r;
     constexpr double kCone = 1.1;
     Rgb sum = Rgb::Zero();
     const Eigen::Vector3f nf = n.cast<float>();
     for (size_t i = 0; i < found; ++i) {
         if (dist2[i] > r2) break;
-        const Photon& p = impl_->cloud.photons[index[i]];
+        const Photon& p = impl_->cloud.points[index[i]];
         if (p.normal.dot(nf) < 0.9f) continue;
         const double w = 1 - std::sqrt(double(dist2[i])) / (kCone * r);
         sum += w * p.power.cast<double>().array();

@@ -2,6 +2,9 @@
 // follow mirrors and glass, and are stored where they first land on a diffuse front face after at
 // least one specular bounce. Paths without a specular bounce are the radiosity solution's, so they
 // are not stored. A kd-tree (nanoflann) answers k-nearest queries for the density estimate.
+// The estimate is precomputed at every few stored photons (Christensen 1999), each valid over the
+// disc its k photons cover; a lookup then reads the nearest such point, one short query instead of
+// a k-nearest search and sum at every shading point.
 #pragma once
 
 #include <cstdint>
@@ -18,6 +21,7 @@ struct PhotonSettings {
     int nearest = 100;           // k of the k-nearest density estimate
     double maxRadius = 0.02;     // largest gather radius, as a fraction of the scene's diagonal
     int maxDepth = 64;           // specular bounces before a photon is dropped
+    int precompute = 4;          // precompute the estimate at every this-many stored photons; 0: never
     uint64_t seed = 1;
 };
 
@@ -37,8 +41,11 @@ public:
     PhotonMap& operator=(const PhotonMap&) = delete;
 
     // Caustic irradiance (W/m^2) at a point of a diffuse surface with unit normal n: the k nearest
-    // photons on surfaces facing the same way, cone-filtered (Jensen's k = 1.1).
+    // photons on surfaces facing the same way, cone-filtered (Jensen's k = 1.1); read from the
+    // nearest precomputed estimate when there are any.
     Rgb irradiance(const Vec3& x, const Vec3& n) const;
+    // The same estimate computed afresh from the k nearest photons; `radius` gets the disc it used.
+    Rgb estimate(const Vec3& x, const Vec3& n, double* radius = nullptr) const;
     const PhotonStats& stats() const { return stats_; }
 
 private:

@@ -3,6 +3,7 @@
 # missing, builds, then runs what was asked.
 #   bash scripts/bootstrap.sh cornell   # build, solve the Cornell box, render its final-gather picture
 #   bash scripts/bootstrap.sh test      # build, run every test (Release, then ASan+UBSan)
+#   bash scripts/bootstrap.sh bench     # build, measure the speed-accuracy trade of both Cornell scenes
 #   bash scripts/bootstrap.sh build     # build only
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -46,6 +47,14 @@ case "${1:-}" in
     ./build/bin/penumbra render scenes/cornell-box.json --solution out/cornell --out out/cornell.exr
     echo "bootstrap: report out/cornell/report.json, final-gather picture out/cornell.png (linear: out/cornell.exr)"
     ;;
+  bench)
+    install_missing
+    build build
+    for scene in cornell-box cornell-glass; do
+      ./build/bin/penumbra bench "scenes/$scene.json" --out "out/bench/$scene"
+    done
+    echo "bootstrap: out/bench/*/summary.md, trade.csv, error-time.png, cost-patches.png"
+    ;;
   test)
     install_missing
     build build
@@ -57,7 +66,7 @@ case "${1:-}" in
        ctest --output-on-failure -j 2 --timeout 1800 -LE slow)
     ;;
   *)
-    echo "usage: bash scripts/bootstrap.sh cornell|test|build" >&2
+    echo "usage: bash scripts/bootstrap.sh cornell|test|bench|build" >&2
     exit 2
     ;;
 esac

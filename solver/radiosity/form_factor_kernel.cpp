@@ -5,25 +5,39 @@
 namespace penumbra {
 
 double pointPolygonFormFactor(const Vec3& x, const Vec3& n, const Vec3* poly, int count) {
-    // Clip to the half-space n . (p - x) > 0: only what lies in front of x is seen.
-    Vec3 clipped[8];
-    int m = 0;
+    // Clip to the half-space n . (p - x) > 0: only what lies in front of x is seen. Most points see
+    // the whole polygon, which then needs no copy.
+    double height[4];
+    bool allInFront = true;
     for (int k = 0; k < count; ++k) {
-        const Vec3& a = poly[k];
-        const Vec3& b = poly[(k + 1) % count];
-        const double da = n.dot(a - x), db = n.dot(b - x);
-        if (da > 0) clipped[m++] = a;
-        if ((da > 0) != (db > 0)) clipped[m++] = a + (da / (da - db)) * (b - a);
+        height[k] = n.dot(poly[k] - x);
+        allInFront = allInFront && height[k] > 0;
     }
-    if (m < 3) return 0;
-    // Lambert: F = 1/(2 pi) sum_k gamma_k n . (R_k x R_k+1) / |R_k x R_k+1|.
+    Vec3 clipped[8];
+    const Vec3* p = poly;
+    int m = count;
+    if (!allInFront) {
+        m = 0;
+        for (int k = 0; k < count; ++k) {
+            const int next = k + 1 < count ? k + 1 : 0;
+            const double da = height[k], db = height[next];
+            if (da > 0) clipped[m++] = poly[k];
+            if ((da > 0) != (db > 0)) clipped[m++] = poly[k] + (da / (da - db)) * (poly[next] - poly[k]);
+        }
+        if (m < 3) return 0;
+        p = clipped;
+    }
+    // Lambert: F = 1/(2 pi) sum_k gamma_k n . (R_k x R_k+1) / |R_k x R_k+1|. Both factors are
+    // invariant to the lengths of R_k and R_k+1 (gamma_k = atan2(|R_k x R_k+1|, R_k . R_k+1)), so
+    // the vectors need no normalising.
     double sum = 0;
-    Vec3 ra = (clipped[0] - x).normalized();
+    Vec3 ra = p[0] - x;
+    const Vec3 first = ra;
     for (int k = 0; k < m; ++k) {
-        const Vec3 rb = (clipped[(k + 1) % m] - x).normalized();
+        const Vec3 rb = k + 1 < m ? Vec3(p[k + 1] - x) : first;
         const Vec3 c = ra.cross(rb);
         const double s = c.norm();
-        if (s > 1e-300) sum += n.dot(c) / s * std::atan2(s, ra.dot(rb));
+        if (s > 0) sum += n.dot(c) / s * std::atan2(s, ra.dot(rb));   // |n . c| <= s: bounded
         ra = rb;
     }
     return std::abs(sum) / (2 * kPi);
