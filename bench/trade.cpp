@@ -36,6 +36,7 @@ struct Baseline {
     int visibilityRays = FormFactorSettings{}.visibilityRays;
     double ffTolerance = CubatureSettings{}.tolerance;
     double tolerance = SolverSettings{}.tolerance;
+    int specularRays = SpecularSettings{}.raysPerPatch;
     int64_t photons = PhotonSettings{}.photons;
     int photonK = PhotonSettings{}.nearest;
     int gatherRays = GatherSettings{}.gatherRays;
@@ -53,7 +54,7 @@ Baseline baselineFor(bool quick) {
 }
 
 Setting baseSetting(const Baseline& b, const std::string& method, const std::string& sweep) {
-    return {method, sweep, b.patches, b.visibilityRays, b.ffTolerance, b.tolerance, b.photons, b.photonK, b.gatherRays,
+    return {method, sweep, b.patches, b.visibilityRays, b.ffTolerance, b.tolerance, b.specularRays, b.photons, b.photonK, b.gatherRays,
             method == "radiosity" ? b.radiositySpp : b.spp};
 }
 
@@ -87,6 +88,7 @@ std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b)
         vary(plan, b, gather, "photons", quick ? std::vector<int64_t>{50000} : std::vector<int64_t>{10000, 100000, 4000000},
              [](Setting& s, int64_t v) { s.photons = v; });
         vary(plan, b, gather, "photon-k", quick ? Ints{25} : Ints{25, 400}, [](Setting& s, int v) { s.photonK = v; });
+        vary(plan, b, gather, "specular-rays", quick ? Ints{512} : Ints{512, 16384}, [](Setting& s, int v) { s.specularRays = v; });
     }
     vary(plan, b, gather, "gather-rays", quick ? Ints{4} : Ints{4, 64}, [](Setting& s, int v) { s.gatherRays = v; });
     vary(plan, b, gather, "spp", quick ? Ints{1} : Ints{1, 4, 8, 64}, [](Setting& s, int v) { s.spp = v; });
@@ -96,12 +98,20 @@ std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b)
     struct Combo {
         int patches, spp, gatherRays;
         double ffTolerance;
+        int specularRays;
     };
+    const int sr = b.specularRays;
     vary(plan, b, gather, "combined",
-         quick ? std::vector<Combo>{{250, 1, 4, 1e-3}}
-               : std::vector<Combo>{{500, 4, 8, 1e-3}, {1000, 4, 8, 1e-3}, {1000, 8, 8, 1e-3}, {1000, 8, 16, 1e-3},
-                                    {2000, 16, 16, 1e-4}, {8000, 64, 32, 1e-5}},
-         [](Setting& s, const Combo& c) { s.patches = c.patches, s.spp = c.spp, s.gatherRays = c.gatherRays, s.ffTolerance = c.ffTolerance; });
+         quick ? std::vector<Combo>{{250, 1, 4, 1e-3, 512}}
+               : std::vector<Combo>{{500, 4, 8, 1e-3, 1024}, {1000, 4, 8, 1e-3, 1024}, {1000, 8, 4, 1e-3, 1024},
+                                    {1000, 8, 8, 1e-3, 1024}, {1000, 16, 4, 1e-3, 1024}, {1000, 8, 16, 1e-3, sr},
+                                    {2000, 16, 16, 1e-4, sr}, {8000, 64, 32, 1e-5, sr}},
+         [](Setting& s, const Combo& c) {
+             s.patches = c.patches, s.spp = c.spp, s.gatherRays = c.gatherRays, s.ffTolerance = c.ffTolerance;
+             s.specularRays = c.specularRays;
+         });
+    if (!scene.hasSpecular())   // no specular transport to trade: every run shares the solves
+        for (Setting& s : plan) s.specularRays = b.specularRays;
     vary(plan, b, {"path"}, "spp", quick ? Ints{4, 16, 64} : Ints{4, 16, 64, 256, 1024, 2048}, [](Setting& s, int v) { s.spp = v; });
     return plan;
 }
@@ -195,7 +205,7 @@ private:
     Baseline baseline_;
     LogLevel userLevel_;
     std::vector<Setting> plan_;
-    std::map<std::tuple<int, int, double, double>, std::unique_ptr<SolveRecord>> solves_;
+    std::map<std::tuple<int, int, double, int, double>, std::unique_ptr<SolveRecord>> solves_;
     PatchSet pathPatches_;
     std::unique_ptr<SceneTracer> pathTracer_;
     double pathSetupSeconds_ = 0;
@@ -242,12 +252,13 @@ const Image& Bench::reference(BenchResult& result) {
 }
 
 const SolveRecord& Bench::solveFor(const Setting& s) {
-    const auto key = std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.tolerance);
+    const auto key = std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.specularRays, s.tolerance);
     if (auto it = solves_.find(key); it != solves_.end()) return *it->second;
     // Every tolerance the plan asks of this mesh comes from one matrix: only the solve differs.
     std::vector<double> tolerances{s.tolerance};
     for (const Setting& p : plan_)
         if (p.method != "path" && p.patches == s.patches && p.visibilityRays == s.visibilityRays && p.ffTolerance == s.ffTolerance &&
+            p.specularRays == s.specularRays &&
             std::find(tolerances.begin(), tolerances.end(), p.tolerance) == tolerances.end())
             tolerances.push_back(p.tolerance);
     SolveOptions o;
@@ -255,7 +266,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
     o.formFactors.visibilityRays = s.visibilityRays;
     o.formFactors.cubature.tolerance = s.ffTolerance;
     o.formFactors.seed = options_.seed;
-    o.specular.seed = options_.seed;
+    o.specular.raysPerPatch = s.specularRays;
     o.solverSettings.tolerance = tolerances.front();
     const uint64_t rays0 = raysCast();
     resetPeakMemory();
@@ -276,7 +287,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
         rec->rayCount = rays;
         rec->formFactorRays = r.F.stats.rays;
         rec->objectMean = objectMeans(scene_, rec->patches, rec->B);
-        solves_[std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, tolerance)] = std::move(rec);
+        solves_[std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.specularRays, tolerance)] = std::move(rec);
     };
     keep(tolerances.front(), r.solution, r.secondsSolve);
     const auto solver = makeSolver(r.solverName);
@@ -390,9 +401,10 @@ void Bench::measureThreads(BenchResult& result) {
     }
     const Camera cam = camera();
     const SolveRecord& rec = solveFor(baseSetting(baseline_, "final-gather", "default"));
-    const SolvedScene solved(scene_, rec.patches, rec.display, {}, {}, options_.seed);
+    const auto solved = quietly([&] { return std::make_unique<SolvedScene>(scene_, rec.patches, rec.display, GatherSettings{},
+                                                                           PhotonSettings{}, options_.seed); });
     const int spp = options_.quick ? 1 : 4;
-    auto gather = [&] { return solved.render(cam, spp, options_.seed).rgb; };
+    auto gather = [&] { return solved->render(cam, spp, options_.seed).rgb; };
     const auto g1 = timed(1, gather), gn = timed(all, gather);
     record("final gather", cat(cam.width, "x", cam.height, ", ", spp, " spp"), g1.first, gn.first, g1.second == gn.second);
     auto path = [&] { return renderPath(*pathTracer_, cam, spp * 4, options_.seed).rgb; };

@@ -32,6 +32,7 @@ struct Setting {
     int patches = 0, visibilityRays = 0;
     double ffTolerance = 0;   // the form-factor cubature's target error
     double tolerance = 0;     // the solver's
+    int specularRays = 0;     // rays per patch through mirrors and glass in the solve
     int64_t photons = 0;
     int photonK = 0, gatherRays = 0, spp = 0;
 };
