@@ -1,5 +1,6 @@
 // Embree alone on the patches of a scene: the yardstick that the form-factor and final-gather stages
-// are measured against. Rays are made before the clock starts, so only Embree is timed.
+// are measured against. The scene is the solver's own RayScene; the rays are made before the clock
+// starts and traced by Embree's calls directly, so only Embree is timed.
 #include <embree3/rtcore.h>
 #include <pmmintrin.h>
 #include <xmmintrin.h>
@@ -13,6 +14,7 @@
 #include "core/rng.h"
 #include "core/timer.h"
 #include "solver/tracer.h"
+#include "solver/visibility.h"
 
 namespace penumbra::bench {
 namespace {
@@ -35,39 +37,6 @@ struct SurfaceSampler {
         return std::min(size_t(it - cdf.begin()), cdf.size() - 1);
     }
     Vec3 point(size_t i, Rng& rng) const { return samplePatchPoint(patches, i, rng.uniform(), rng.uniform(), rng.uniform()); }
-};
-
-// The patches as one quad geometry, built as solver/visibility builds it (robust, high quality).
-struct EmbreeScene {
-    RTCDevice device = nullptr;
-    RTCScene scene = nullptr;
-    explicit EmbreeScene(const PatchSet& patches) {
-        device = rtcNewDevice("verbose=0");
-        if (!device) throw Error("Embree: cannot create a device for the limit bench");
-        scene = rtcNewScene(device);
-        rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
-        rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
-        RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_QUAD);
-        const size_t n = patches.size();
-        auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                               3 * sizeof(float), 4 * n));
-        auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4,
-                                                                  4 * sizeof(unsigned), n));
-        for (size_t i = 0; i < n; ++i)
-            for (size_t k = 0; k < 4; ++k) {
-                for (int c = 0; c < 3; ++c) vb[3 * (4 * i + k) + size_t(c)] = float(patches.corners[i][k][c]);
-                ib[4 * i + k] = unsigned(4 * i + k);
-            }
-        rtcCommitGeometry(geom);
-        rtcAttachGeometry(scene, geom);
-        rtcReleaseGeometry(geom);
-        rtcCommitScene(scene);
-        if (rtcGetDeviceError(device) != RTC_ERROR_NONE) throw Error("Embree: building the limit bench's scene failed");
-    }
-    ~EmbreeScene() {
-        rtcReleaseScene(scene);
-        rtcReleaseDevice(device);
-    }
 };
 
 // Rays per second of `trace(begin, end)` over `count` rays split across the threads: the best of
@@ -94,7 +63,9 @@ EmbreeLimit measureEmbreeLimit(const PatchSet& patches, uint64_t rays, uint64_t 
     if (patches.size() == 0) return out;
     const size_t count = size_t(std::max<uint64_t>(8, rays / 8 * 8));
     out.rays = count;
-    const EmbreeScene embree(patches);
+    // The solver's own ray scene (same build flags and quality); only the queries below are Embree's alone.
+    const RayScene rayScene(patches);
+    const auto scene = static_cast<RTCScene>(rayScene.embreeScene());
     const SurfaceSampler sampler(patches);
 
     // Segments between random points of two different patches, trimmed at both ends as the form
@@ -127,7 +98,7 @@ EmbreeLimit measureEmbreeLimit(const PatchSet& patches, uint64_t rays, uint64_t 
         for (size_t k = b; k < e; ++k) {
             const Segment& s = segments[k];
             RTCRay ray{s.org[0], s.org[1], s.org[2], 1e-5f, s.dir[0], s.dir[1], s.dir[2], 0.0f, 1 - 1e-5f, 0xFFFFFFFFu, 0, 0};
-            rtcOccluded1(embree.scene, &context, &ray);
+            rtcOccluded1(scene, &context, &ray);
             blocked[k] = ray.tfar < 0;
         }
     });
@@ -145,7 +116,7 @@ EmbreeLimit measureEmbreeLimit(const PatchSet& patches, uint64_t rays, uint64_t 
                 ray.tnear[l] = 1e-5f, ray.tfar[l] = 1 - 1e-5f, ray.time[l] = 0;
                 ray.mask[l] = 0xFFFFFFFFu, ray.id[l] = 0, ray.flags[l] = 0;
             }
-            rtcOccluded8(valid, embree.scene, &context, &ray);
+            rtcOccluded8(valid, scene, &context, &ray);
             for (int l = 0; l < 8; ++l) blocked[k + size_t(l)] += ray.tfar[l] < 0;
         }
     });
@@ -158,11 +129,10 @@ EmbreeLimit measureEmbreeLimit(const PatchSet& patches, uint64_t rays, uint64_t 
             rh.ray = RTCRay{s.org[0], s.org[1], s.org[2], 0.0f, s.dir[0], s.dir[1], s.dir[2], 0.0f, 3e38f, 0xFFFFFFFFu, 0, 0};
             rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
             rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-            rtcIntersect1(embree.scene, &context, &rh);
+            rtcIntersect1(scene, &context, &rh);
             blocked[k] += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
         }
     });
-    if (rtcGetDeviceError(embree.device) != RTC_ERROR_NONE) throw Error("Embree: the limit bench's queries failed");
     return out;
 }
 

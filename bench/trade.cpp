@@ -110,6 +110,11 @@ std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b)
              s.patches = c.patches, s.spp = c.spp, s.gatherRays = c.gatherRays, s.ffTolerance = c.ffTolerance;
              s.specularRays = c.specularRays;
          });
+    // The plain radiosity view on finer meshes with the loose cubature: the cheapest views of all, once solved.
+    vary(plan, b, {"radiosity"}, "combined", quick ? Ints{1000} : Ints{4000, 6000, 8000}, [](Setting& s, int v) {
+        s.patches = v;
+        s.ffTolerance = 1e-3;
+    });
     if (!scene.hasSpecular())   // no specular transport to trade: every run shares the solves
         for (Setting& s : plan) s.specularRays = b.specularRays;
     vary(plan, b, {"path"}, "spp", quick ? Ints{4, 16, 64} : Ints{4, 16, 64, 256, 1024, 2048}, [](Setting& s, int v) { s.spp = v; });

@@ -111,6 +111,8 @@ RayScene::RayScene(const PatchSet& patches, const std::vector<RaySphere>& sphere
     impl_->check("building the ray-tracing scene");
 }
 
+void* RayScene::embreeScene() const { return impl_->scene; }
+
 RayScene::~RayScene() {
     if (impl_->scene) rtcReleaseScene(impl_->scene);
     if (impl_->device) rtcReleaseDevice(impl_->device);

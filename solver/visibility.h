@@ -42,6 +42,9 @@ public:
     bool occluded(const Vec3& from, const Vec3& to, double trim = 1e-5) const;
     // Nearest hit along origin + t * dir, t in (tMin, tMax).
     Hit intersect(const Vec3& origin, const Vec3& dir, double tMin = 0, double tMax = 1e30) const;
+    // The committed Embree scene (an RTCScene), for the bench that measures Embree alone on the very
+    // scene the solver traces; opaque here so that Embree's headers stay in this module.
+    void* embreeScene() const;
 
 private:
     struct Impl;
