@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <tuple>
 
 #include "bench/trade.h"
 #include "core/error.h"
@@ -113,6 +114,15 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
     return 0;
 }
 
+// --resolution WIDTHxHEIGHT, each side in [1, 16384].
+std::pair<int, int> parseResolution(const std::string& text) {
+    int w = 0, h = 0, used = 0;
+    if (std::sscanf(text.c_str(), "%dx%d%n", &w, &h, &used) != 2 || size_t(used) != text.size())
+        throw Error(cat("--resolution: expected WIDTHxHEIGHT such as 512x512, got '", text, "'"));
+    if (w < 1 || h < 1 || w > 16384 || h > 16384) throw Error("--resolution: width and height must lie in [1, 16384]");
+    return {w, h};
+}
+
 Camera cameraFor(const Scene& scene, const RenderCli& c) {
     Camera camera = scene.camera;
     if (!c.camera.empty()) {
@@ -120,15 +130,7 @@ Camera cameraFor(const Scene& scene, const RenderCli& c) {
     } else if (!scene.hasCamera) {
         throw Error(cat(scene.path, ": camera: the scene has no camera; add one or pass --camera '{\"position\": ..., \"look_at\": ...}'"));
     }
-    if (!c.resolution.empty()) {
-        int w = 0, h = 0, used = 0;
-        if (std::sscanf(c.resolution.c_str(), "%dx%d%n", &w, &h, &used) != 2 || size_t(used) != c.resolution.size())
-            throw Error(cat("--resolution: expected WIDTHxHEIGHT such as 512x512, got '", c.resolution, "'"));
-        camera.width = w;
-        camera.height = h;
-        if (camera.width < 1 || camera.height < 1 || camera.width > 16384 || camera.height > 16384)
-            throw Error("--resolution: width and height must lie in [1, 16384]");
-    }
+    if (!c.resolution.empty()) std::tie(camera.width, camera.height) = parseResolution(c.resolution);
     return camera;
 }
 
@@ -258,13 +260,7 @@ int runExport(const std::string& dir, const std::string& out, std::string format
 }
 
 int runBenchCommand(bench::BenchOptions& options, const std::string& resolution) {
-    if (!resolution.empty()) {
-        int used = 0;
-        if (std::sscanf(resolution.c_str(), "%dx%d%n", &options.width, &options.height, &used) != 2 ||
-            size_t(used) != resolution.size() || options.width < 1 || options.height < 1 || options.width > 16384 ||
-            options.height > 16384)
-            throw Error(cat("--resolution: expected WIDTHxHEIGHT with sides in [1, 16384], got '", resolution, "'"));
-    }
+    if (!resolution.empty()) std::tie(options.width, options.height) = parseResolution(resolution);
     const bench::BenchResult result = bench::runBench(options);
     // Everything is measured before the first file is written.
     ensureDirectory(options.out);

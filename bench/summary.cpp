@@ -313,25 +313,19 @@ bool writePlots(const BenchResult& r, const std::string& dir) {
     const std::filesystem::path d(dir);
     const std::filesystem::path data = d / "plot-data";
     ensureDirectory(data.string());
-    auto points = [&](const std::string& method) {
+    // (seconds, error) of the runs that pass `keep`, in order of time.
+    auto points = [&](const auto& keep) {
         std::vector<const Row*> rows;
         for (const Row& x : r.rows)
-            if (x.setting.method == method) rows.push_back(&x);
+            if (keep(x)) rows.push_back(&x);
         std::sort(rows.begin(), rows.end(), [](const Row* a, const Row* b) { return a->total() < b->total(); });
         std::string text = "# seconds_total image_error_blurred\n";
         for (const Row* x : rows) text += cat(x->total(), " ", x->imageError, "\n");
         return text;
     };
-    writeFileAtomic((data / "final-gather.dat").string(), points("final-gather"));
-    writeFileAtomic((data / "radiosity.dat").string(), points("radiosity"));
-    writeFileAtomic((data / "path.dat").string(), points("path"));
-    std::vector<const Row*> front;
-    for (const Row& x : r.rows)
-        if (x.pareto) front.push_back(&x);
-    std::sort(front.begin(), front.end(), [](const Row* a, const Row* b) { return a->total() < b->total(); });
-    std::string frontText = "# seconds_total image_error_blurred\n";
-    for (const Row* x : front) frontText += cat(x->total(), " ", x->imageError, "\n");
-    writeFileAtomic((data / "pareto.dat").string(), frontText);
+    for (const char* method : {"final-gather", "radiosity", "path"})
+        writeFileAtomic((data / cat(method, ".dat")).string(), points([&](const Row& x) { return x.setting.method == method; }));
+    writeFileAtomic((data / "pareto.dat").string(), points([](const Row& x) { return x.pareto; }));
     // The cost of the solve against the patch count: the radiosity runs of the patch sweep.
     std::vector<const Row*> solves;
     for (const Row& x : r.rows)

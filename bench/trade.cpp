@@ -153,13 +153,17 @@ struct SolveRecord {
     std::vector<Rgb> objectMean;   // area-weighted mean B per object
 };
 
+// Area of each scene object, m^2, as meshed.
+std::vector<double> objectAreas(const Scene& scene, const PatchSet& patches) {
+    std::vector<double> area(scene.objects.size(), 0.0);
+    for (size_t i = 0; i < patches.size(); ++i) area[size_t(patches.object[i])] += patches.area[i];
+    return area;
+}
+
 std::vector<Rgb> objectMeans(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& B) {
     std::vector<Rgb> sum(scene.objects.size(), Rgb::Zero());
-    std::vector<double> area(scene.objects.size(), 0.0);
-    for (size_t i = 0; i < patches.size(); ++i) {
-        sum[size_t(patches.object[i])] += patches.area[i] * B[i];
-        area[size_t(patches.object[i])] += patches.area[i];
-    }
+    for (size_t i = 0; i < patches.size(); ++i) sum[size_t(patches.object[i])] += patches.area[i] * B[i];
+    const std::vector<double> area = objectAreas(scene, patches);
     for (size_t o = 0; o < sum.size(); ++o) sum[o] /= std::max(area[o], 1e-300);
     return sum;
 }
@@ -168,8 +172,7 @@ std::vector<Rgb> objectMeans(const Scene& scene, const PatchSet& patches, const 
 // reference solve's: {max, area-weighted mean} over the objects that receive light.
 std::pair<double, double> objectErrors(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& mean,
                                        const std::vector<Rgb>& reference) {
-    std::vector<double> area(scene.objects.size(), 0.0);
-    for (size_t i = 0; i < patches.size(); ++i) area[size_t(patches.object[i])] += patches.area[i];
+    const std::vector<double> area = objectAreas(scene, patches);
     double worst = 0, weighted = 0, total = 0;
     for (size_t o = 0; o < scene.objects.size(); ++o) {
         if (scene.materialOf(scene.objects[o]).type != MaterialType::Diffuse || !(reference[o].sum() > 0)) continue;
@@ -215,7 +218,6 @@ private:
     std::unique_ptr<SceneTracer> pathTracer_;
     double pathSetupSeconds_ = 0;
     Image reference_;
-    uint64_t lastRenderRays_ = 0;
 };
 
 Camera Bench::camera() const {
@@ -349,7 +351,7 @@ Row Bench::runOne(const Setting& s) {
             Timer timer;
             image = quietly([&] { return solved->render(cam, s.spp, options_.seed); });
             row.render = timer.seconds();
-            lastRenderRays_ = raysCast() - rays1;
+            row.renderRays = raysCast() - rays1;
         }
         row.rays = rec.rayCount + (raysCast() - rays0);
         row.peakMiB = std::max(rec.peakMiB, peakMemoryBytes() / (1 << 20));
@@ -442,7 +444,7 @@ BenchResult Bench::run() {
         records.push_back(s.method == "path" ? nullptr : &solveFor(s));
         const Row& row = result.rows.back();
         if (s.method == "final-gather" && s.sweep == "default") {
-            result.gatherRays = double(lastRenderRays_);
+            result.gatherRays = double(row.renderRays);
             result.gatherSeconds = row.render;
             const SolveRecord& rec = *records.back();
             result.formFactorRays = double(rec.formFactorRays);

@@ -48,6 +48,7 @@ struct Row {
     double peakMiB = 0;          // peak resident memory during the run's own stages
     double matrixMiB = 0;
     uint64_t rays = 0;           // rays cast by the run's stages (solve + render)
+    uint64_t renderRays = 0;     // of those, the final gather's render alone (photons not counted)
     double imageError = 0;       // mean relative error after a 5x5 box blur, against the reference
     double imageErrorRaw = 0, rmse = 0;
     double objectErrorMax = -1, objectErrorMean = -1;   // radiosity per object against the finest solve; -1: none

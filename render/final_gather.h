@@ -71,8 +71,6 @@ public:
         return renderFinalGather(*gather_, camera, samplesPerPixel, seed);
     }
     const FinalGather& gather() const { return *gather_; }
-    // The caustic photon map, or null when the scene has no mirrors or glass.
-    const PhotonMap* caustics() const { return caustics_.get(); }
 
 private:
     std::vector<std::array<Rgb, 4>> corners_;

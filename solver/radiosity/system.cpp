@@ -1,6 +1,5 @@
 #include "solver/radiosity/system.h"
 
-
 #include "core/parallel.h"
 
 namespace penumbra {
