@@ -43,6 +43,21 @@ struct SolveCli {
     SolveOptions options;
     double maxMemoryGiB = 0;
     int viewSpp = 4;
+    CLI::Option* patches = nullptr;
+    std::string vertexRadiosity = "gather";
+
+    // The options as the solve takes them, with what the command line leaves to depend on others.
+    SolveOptions resolved(const CommonOptions& common) const {
+        SolveOptions o = options;
+        o.formFactors.seed = common.seed;
+        o.maxMemoryBytes = maxMemoryGiB * double(1ull << 30);
+        o.gatherVertices = vertexRadiosity == "gather";
+        // Adaptive subdivision starts coarse, unless told where to start.
+        if (o.refine.tolerance > 0 && patches->count() == 0 && !(o.meshing.patchSize > 0))
+            o.meshing.targetPatches = std::min(kRefineStartPatches, o.refine.maxPatches);
+        return o;
+    }
+    static constexpr int kRefineStartPatches = 400;
 };
 
 struct RenderCli {
@@ -62,8 +77,9 @@ int defaultSpp(const std::string& integrator) {
 }
 
 void addSolveOptions(CLI::App* cmd, SolveCli& s) {
-    cmd->add_option("--patches", s.options.meshing.targetPatches, "About this many patches in all")
-        ->capture_default_str()->check(CLI::Range(1, 100000000));
+    s.patches = cmd->add_option("--patches", s.options.meshing.targetPatches,
+                                "About this many patches in all (with --refine: to start from, default 400)")
+                    ->capture_default_str()->check(CLI::Range(1, 100000000));
     cmd->add_option("--patch-size", s.options.meshing.patchSize, "Target patch edge length in metres (overrides --patches)")
         ->check(CLI::PositiveNumber);
     cmd->add_option("--solver", s.options.solver, "jacobi | gauss-seidel | southwell")->capture_default_str();
@@ -81,6 +97,18 @@ void addSolveOptions(CLI::App* cmd, SolveCli& s) {
     cmd->add_option("--specular-rays", s.options.specular.raysPerPatch,
                     "Rays per patch that trace light through mirrors and glass in the solve")
         ->capture_default_str()->check(CLI::Range(1, 1 << 24));
+    cmd->add_option("--refine", s.options.refine.tolerance,
+                    "Adaptive subdivision: after each solve, split patches whose radiosity differs from a neighbour's, "
+                    "or whose light a shadow edge changes, by more than this fraction (e.g. 0.1)")
+        ->check(CLI::Range(1e-6, 10.0));
+    cmd->add_option("--max-patches", s.options.refine.maxPatches, "Patch budget of --refine")
+        ->capture_default_str()->check(CLI::Range(1, 100000000));
+    cmd->add_option("--refine-rounds", s.options.refine.maxRounds, "Most rounds of --refine")
+        ->capture_default_str()->check(CLI::Range(1, 100));
+    cmd->add_option("--vertex-radiosity", s.vertexRadiosity,
+                    "Displayed radiosity at the patch corners: gather (the radiosity equation at each vertex) or "
+                    "average (the mean of the patches around it; cheaper, blurs edges and contacts)")
+        ->capture_default_str()->check(CLI::IsMember({"gather", "average"}));
     cmd->add_option("--max-memory", s.maxMemoryGiB, "Memory budget in GiB for the matrix (default: what is available)")
         ->check(CLI::PositiveNumber);
 }
@@ -92,15 +120,13 @@ void setupLogging(const CommonOptions& c) {
 
 int runSolve(SolveCli& s, const CommonOptions& common) {
     const Scene scene = loadScene(s.scene);
-    s.options.formFactors.seed = common.seed;
-    s.options.maxMemoryBytes = s.maxMemoryGiB * double(1ull << 30);
-    const SolveResult r = solveScene(scene, s.options);
-    const auto corners = interpolateCorners(r.patches, r.solution.display);
+    const SolveResult r = solveScene(scene, s.resolved(common));
+    const CornerValues& corners = r.corners;
 
     // Everything is computed before the first byte is written; each file appears whole.
     ensureDirectory(s.out);
     const std::filesystem::path dir(s.out);
-    writeSolution((dir / "solution.bin").string(), {scene.fingerprint, r.patches, r.solution.B, r.solution.display});
+    writeSolution((dir / "solution.bin").string(), {scene.fingerprint, r.patches, r.solution.B, r.solution.display, r.corners});
     writeFileAtomic((dir / "convergence.csv").string(), convergenceCsv(r));
     if (scene.hasCamera) {
         const Image view = renderRadiosityView(scene, scene.camera, r.patches, *r.rays, corners, {s.viewSpp, common.seed});
@@ -145,10 +171,8 @@ StoredSolution solutionFor(const Scene& scene, const RenderCli& c, SolveCli& s, 
         return stored;
     }
     logInfo("no --solution given: solving first");
-    s.options.formFactors.seed = common.seed;
-    s.options.maxMemoryBytes = s.maxMemoryGiB * double(1ull << 30);
-    SolveResult r = solveScene(scene, s.options);
-    return {scene.fingerprint, std::move(r.patches), r.solution.B, r.solution.display};
+    SolveResult r = solveScene(scene, s.resolved(common));
+    return {scene.fingerprint, std::move(r.patches), r.solution.B, r.solution.display, std::move(r.corners)};
 }
 
 int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
@@ -189,13 +213,13 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
         const SceneTracer tracer(scene, stored.patches);
         for (const Camera& cam : cameras) images.push_back(renderPath(tracer, cam, spp, common.seed));
     } else if (integrator == "radiosity") {
-        const auto corners = interpolateCorners(stored.patches, stored.display);
+        const CornerValues& corners = stored.corners;
         RayScene rays(stored.patches);
         for (const Camera& cam : cameras)
             images.push_back(renderRadiosityView(scene, cam, stored.patches, rays, corners, {spp, common.seed}));
     } else {
         // The ray scene and the photon map serve every view of an orbit.
-        const SolvedScene solved(scene, stored.patches, stored.display, c.gather, c.photons, common.seed);
+        const SolvedScene solved(scene, stored.patches, stored.corners, c.gather, c.photons, common.seed);
         for (const Camera& cam : cameras) images.push_back(solved.render(cam, spp, common.seed));
     }
     const double seconds = timer.seconds();
@@ -235,7 +259,7 @@ int runView(RenderCli& c, SolveCli& s, ViewerOptions& options, const CommonOptio
         const std::string parent = std::filesystem::path(options.screenshot).parent_path().string();
         if (!parent.empty()) ensureDirectory(parent);
     }
-    runViewer(scene, stored.patches, stored.display, camera, options);
+    runViewer(scene, stored.patches, stored.corners, camera, options);
     return 0;
 }
 
@@ -246,7 +270,7 @@ int runExport(const std::string& dir, const std::string& out, std::string format
         throw Error(cat("--format: expected gltf or ply (or an --out ending in .glb, .gltf or .ply), got '",
                         format.empty() ? ext : format, "'"));
     const StoredSolution stored = readSolution((std::filesystem::path(dir) / "solution.bin").string());
-    const ExportMesh mesh = exportMesh(stored.patches, stored.display);
+    const ExportMesh mesh = exportMesh(stored.patches, stored.corners);
     const double exposure = exportExposure(mesh, stops);
     const std::string parent = std::filesystem::path(out).parent_path().string();
     if (!parent.empty()) ensureDirectory(parent);
@@ -381,7 +405,10 @@ int main(int argc, char** argv) {
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        return app.exit(e);
+        // Help and version go out as CLI11 prints them; a bad option is one error line, exit 2.
+        if (e.get_exit_code() == 0) return app.exit(e);
+        std::fprintf(stderr, "penumbra: error: %s (see --help)\n", e.what());
+        return 2;
     }
     try {
         setupLogging(common);

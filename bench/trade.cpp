@@ -24,6 +24,7 @@
 #include "render/path_tracer.h"
 #include "render/photon_map.h"
 #include "render/radiosity_view.h"
+#include "solver/radiosity/vertex_radiosity.h"
 #include "solver/solve.h"
 #include "solver/tracer.h"
 
@@ -285,10 +286,13 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
         rec->patches = r.patches;
         rec->B = solution.B;
         rec->display = solution.display;
-        rec->corners = interpolateCorners(rec->patches, rec->display);
+        Timer vertexTimer;
+        rec->corners = &solution == &r.solution ? r.corners
+                                                : quietly([&] { return gatherCorners(r.patches, r.system, r.F, solution.display, *r.rays); });
+        const double vertexSeconds = &solution == &r.solution ? r.secondsVertices : vertexTimer.seconds();
         rec->rays = r.rays;
         rec->meshing = r.secondsMeshing, rec->formFactors = r.secondsFormFactors, rec->specular = r.secondsSpecular;
-        rec->solve = solveSeconds;
+        rec->solve = solveSeconds + vertexSeconds;   // the display's vertex radiosity counts with the solve
         rec->peakMiB = peak;
         rec->matrixMiB = double(formFactorMatrixBytes(r.patches.size())) / (1 << 20);
         rec->rayCount = rays;
@@ -344,7 +348,7 @@ Row Bench::runOne(const Setting& s) {
             photons.nearest = s.photonK;
             Timer setup;
             const auto solved = quietly([&] {
-                return std::make_unique<SolvedScene>(scene_, rec.patches, rec.display, gather, photons, options_.seed);
+                return std::make_unique<SolvedScene>(scene_, rec.patches, rec.corners, gather, photons, options_.seed);
             });
             row.photons = setup.seconds();
             const uint64_t rays1 = raysCast();

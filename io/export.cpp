@@ -58,8 +58,7 @@ std::vector<float> flatten(size_t count, const F& at) {
 
 }  // namespace
 
-ExportMesh exportMesh(const PatchSet& patches, const std::vector<Rgb>& radiosity) {
-    const auto corners = interpolateCorners(patches, radiosity);
+ExportMesh exportMesh(const PatchSet& patches, const CornerValues& corners) {
     ExportMesh m;
     for (size_t i = 0; i < patches.size(); ++i) {
         const int base = int(m.positions.size());

@@ -18,7 +18,7 @@ struct ExportMesh {
 };
 
 // The mesh of the patches with their radiosity B interpolated to the corners, as radiance B / pi.
-ExportMesh exportMesh(const PatchSet& patches, const std::vector<Rgb>& radiosity);
+ExportMesh exportMesh(const PatchSet& patches, const CornerValues& cornerRadiosity);
 
 // The exposure factor the export uses: middle grey at the log-average vertex luminance, shifted by
 // `stops` (as the PNG previews).

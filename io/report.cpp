@@ -80,7 +80,7 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
         {"threads", threadCount()},
         {"seconds",
          {{"meshing", r.secondsMeshing}, {"form_factors", r.secondsFormFactors},
-          {"specular_transport", r.secondsSpecular}, {"solve", r.secondsSolve}}},
+          {"specular_transport", r.secondsSpecular}, {"solve", r.secondsSolve}, {"vertex_radiosity", r.secondsVertices}}},
         {"counters",
          {{"facing_pairs", ff.pairs},
           {"occluded_pairs", ff.occluded},
@@ -95,6 +95,13 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
         {"matrix_mib", double(formFactorMatrixBytes(r.patches.size())) / (1 << 20)},
         {"peak_memory_mib", peakMemory / (1 << 20)},
     };
+    if (!r.refinement.empty()) {
+        Json rounds = Json::array();
+        for (const RefineRound& round : r.refinement)
+            rounds.push_back({{"patches", round.patches}, {"split", round.split}, {"marked_by_gradient", round.byGradient},
+                              {"marked_by_shadow", round.byShadow}, {"seconds_so_far", round.secondsSoFar}});
+        report["solver"]["refinement"] = rounds;
+    }
     report["scene"] = {{"file", scene.path}, {"unit_scale", scene.unitScale}};
     return report.dump(2) + "\n";
 }

@@ -9,7 +9,10 @@
 namespace penumbra {
 namespace {
 
-constexpr char kMagic[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '1'};
+// Version 02 adds the corner values; version 01 files (without them) are still read, their corners
+// interpolated from the display values as they were shown when written.
+constexpr char kMagic[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '2'};
+constexpr char kMagic01[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '1'};
 
 struct Writer {
     std::string bytes;
@@ -36,6 +39,7 @@ struct Reader {
 }  // namespace
 
 void writeSolution(const std::string& path, const StoredSolution& s) {
+    PENUMBRA_CHECK_EQ(s.corners.size(), s.patches.size());
     Writer w;
     w.bytes.append(kMagic, 8);
     w.put(s.sceneFingerprint);
@@ -49,6 +53,7 @@ void writeSolution(const std::string& path, const StoredSolution& s) {
         for (int k = 0; k < 4; ++k) w.put(int32_t(s.patches.cornerVertex[i][size_t(k)]));
         w.put(s.radiosity[i]);
         w.put(s.display[i]);
+        for (int k = 0; k < 4; ++k) w.put(s.corners[i][size_t(k)]);
     }
     writeFileAtomic(path, w.bytes);
 }
@@ -57,7 +62,8 @@ StoredSolution readSolution(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw Error(cat(path, ": no solution here (solve the scene first with `penumbra solve SCENE --out DIR`)"));
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (bytes.size() < 8 || std::memcmp(bytes.data(), kMagic, 8) != 0)
+    const bool v01 = bytes.size() >= 8 && std::memcmp(bytes.data(), kMagic01, 8) == 0;
+    if (bytes.size() < 8 || (!v01 && std::memcmp(bytes.data(), kMagic, 8) != 0))
         throw Error(cat(path, ": not a Penumbra solution file (or from an incompatible version)"));
     Reader r{bytes, path, 8};
     StoredSolution s;
@@ -79,8 +85,14 @@ StoredSolution readSolution(const std::string& path) {
         s.patches.add(c, count, object, ids);
         s.radiosity.push_back(r.rgb());
         s.display.push_back(r.rgb());
+        if (!v01) {
+            std::array<Rgb, 4> c;
+            for (auto& value : c) value = r.rgb();
+            s.corners.push_back(c);
+        }
     }
     if (s.patches.size() != n) throw Error(cat(path, ": solution file is damaged (degenerate patch)"));
+    if (v01) s.corners = interpolateCorners(s.patches, s.display);
     return s;
 }
 

@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "mesh/patches.h"
+#include "mesh/refine.h"
 
 namespace penumbra {
 namespace {
@@ -276,7 +277,7 @@ PatchSet meshScene(const Scene& scene, const MeshingOptions& options) {
     return patches;
 }
 
-std::vector<std::array<Rgb, 4>> interpolateCorners(const PatchSet& p, const std::vector<Rgb>& value, double creaseDeg) {
+CornerValues interpolateCorners(const PatchSet& p, const std::vector<Rgb>& value, double creaseDeg) {
     // Patches around each vertex (vertices are per object, so nothing crosses objects).
     std::vector<std::vector<int>> around(p.vertices.size());
     for (size_t i = 0; i < p.size(); ++i)
@@ -295,6 +296,7 @@ std::vector<std::array<Rgb, 4>> interpolateCorners(const PatchSet& p, const std:
             out[i][size_t(k)] = weight > 0 ? Rgb(sum / weight) : value[i];
         }
     }
+    joinHangingVertices(p, out, creaseDeg);
     return out;
 }
 

@@ -50,9 +50,12 @@ Eigen::AlignedBox3d patchBounds(const PatchSet& patches);
 // Total surface area of the scene's objects, m^2 (spheres exactly, before tessellation).
 double sceneArea(const Scene& scene);
 
+// A value at each corner of each patch (corner 3 repeats corner 2 on triangles): what the display
+// interpolates across a patch.
+using CornerValues = std::vector<std::array<Rgb, 4>>;
+
 // Per-corner radiosity for display: the area-weighted mean of the values of the patches of the same
 // object that share the corner's vertex and whose normals lie within `creaseDeg` of the patch's.
-std::vector<std::array<Rgb, 4>> interpolateCorners(const PatchSet& patches, const std::vector<Rgb>& value,
-                                                   double creaseDeg = 30);
+CornerValues interpolateCorners(const PatchSet& patches, const std::vector<Rgb>& value, double creaseDeg = 30);
 
 }  // namespace penumbra

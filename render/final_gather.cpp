@@ -120,9 +120,9 @@ Image renderFinalGather(const FinalGather& gather, const Camera& camera, int sam
                         [&](const Vec3& o, const Vec3& d, Rng& rng) { return gather.radiance(o, d, rng); });
 }
 
-SolvedScene::SolvedScene(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity,
+SolvedScene::SolvedScene(const Scene& scene, const PatchSet& patches, CornerValues cornerRadiosity,
                          const GatherSettings& settings, PhotonSettings photons, uint64_t seed)
-    : corners_(interpolateCorners(patches, radiosity)), tracer_(std::make_unique<SceneTracer>(scene, patches)) {
+    : corners_(std::move(cornerRadiosity)), tracer_(std::make_unique<SceneTracer>(scene, patches)) {
     if (tracer_->hasSpecular()) {
         photons.seed = seed;
         caustics_ = std::make_unique<PhotonMap>(*tracer_, photons);

@@ -65,15 +65,19 @@ Image renderFinalGather(const FinalGather& gather, const Camera& camera, int sam
 // `radiosity` is B per patch of `patches`; both must outlive this object.
 class SolvedScene {
 public:
-    SolvedScene(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity,
+    SolvedScene(const Scene& scene, const PatchSet& patches, CornerValues cornerRadiosity,
                 const GatherSettings& settings, PhotonSettings photons, uint64_t seed);
+    // With corner values interpolated from B per patch (interpolateCorners).
+    SolvedScene(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity,
+                const GatherSettings& settings, PhotonSettings photons, uint64_t seed)
+        : SolvedScene(scene, patches, interpolateCorners(patches, radiosity), settings, photons, seed) {}
     Image render(const Camera& camera, int samplesPerPixel, uint64_t seed) const {
         return renderFinalGather(*gather_, camera, samplesPerPixel, seed);
     }
     const FinalGather& gather() const { return *gather_; }
 
 private:
-    std::vector<std::array<Rgb, 4>> corners_;
+    CornerValues corners_;
     std::unique_ptr<SceneTracer> tracer_;
     std::unique_ptr<PhotonMap> caustics_;
     std::unique_ptr<FinalGather> gather_;

@@ -8,6 +8,7 @@
 #include "mesh/patches.h"
 #include "mesh/scene.h"
 #include "solver/radiosity/form_factors.h"
+#include "solver/radiosity/refinement.h"
 #include "solver/radiosity/solvers.h"
 #include "solver/radiosity/system.h"
 #include "solver/visibility.h"
@@ -20,7 +21,16 @@ struct SolveOptions {
     SpecularSettings specular;
     std::string solver = "gauss-seidel";
     SolverSettings solverSettings;
+    RefineSettings refine;      // adaptive subdivision after the first solve (off by default)
+    bool gatherVertices = true; // displayed corner radiosity by the equation at each vertex (else the mean around it)
     double maxMemoryBytes = 0;   // 0: what the machine has available
+};
+
+// One round of adaptive subdivision: the mesh it solved and what it cost so far.
+struct RefineRound {
+    size_t patches = 0;
+    size_t byGradient = 0, byShadow = 0, split = 0;   // patches marked by each test, and split in all
+    double secondsSoFar = 0;                          // meshing, form factors and solves, all rounds to here
 };
 
 struct SolveResult {
@@ -30,9 +40,11 @@ struct SolveResult {
     FormFactorMatrix F;
     RadiositySystem system;
     RadiositySolution solution;
+    CornerValues corners;             // the displayed radiosity at each patch corner
     PowerBalance power;
-    double secondsMeshing = 0, secondsFormFactors = 0, secondsSpecular = 0, secondsSolve = 0;
+    double secondsMeshing = 0, secondsFormFactors = 0, secondsSpecular = 0, secondsSolve = 0, secondsVertices = 0;
     double rowSumMin = 0, rowSumMax = 0;   // front-face row sums (closed scenes: 1 within error)
+    std::vector<RefineRound> refinement;   // empty without --refine; else the first solve, then each round
 };
 
 SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer = {});

@@ -106,6 +106,8 @@ TEST(CliErrors, ClosedWhiteFurnaceHasNoSteadyState) {
 TEST(CliErrors, OptionProblems) {
     expectRefused(sceneWith("", ""), {"unknown solver 'magic'", "jacobi", "gauss-seidel", "southwell"}, "--solver magic");
     expectRefused(sceneWith("", ""), {"--max-memory", "patches fit"}, "--max-memory 0.000001");
+    expectRefused(sceneWith("", ""), {"--refine"}, "--refine -1");
+    expectRefused(sceneWith("", ""), {"--vertex-radiosity", "gather"}, "--vertex-radiosity nearest");
     const CommandResult missing = run("solve /nonexistent/scene.json --out " + test::tempDir() + "/never");
     EXPECT_NE(missing.status, 0);
     EXPECT_NE(missing.output.find("/nonexistent/scene.json"), std::string::npos) << missing.output;
@@ -160,6 +162,23 @@ TEST(Cli, CornellBoxSolvesToAConformingReportAndRendersFromTheSolution) {
     EXPECT_NE(mismatch.status, 0);
     EXPECT_NE(mismatch.output.find("another version"), std::string::npos) << mismatch.output;
     EXPECT_FALSE(fs::exists(out + "/other.exr"));
+}
+
+TEST(Cli, RefinedSolveReportsItsRoundsAndConforms) {
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
+    const std::string out = test::tempDir() + "/refined";
+    fs::remove_all(out);
+    const CommandResult solve = run(cat("solve ", scene, " --out ", out, " --refine 0.1 --patches 120 --max-patches 400 --quiet"));
+    ASSERT_EQ(solve.status, 0) << solve.output;
+    std::ifstream in(out + "/report.json");
+    const nlohmann::json report = nlohmann::json::parse(in);
+    const auto& rounds = report["solver"]["refinement"];
+    ASSERT_GE(rounds.size(), 2u);
+    EXPECT_GT(rounds.back()["patches"].get<int>(), rounds.front()["patches"].get<int>());
+    EXPECT_LE(report["solver"]["patches"].get<int>(), 400);
+    EXPECT_EQ(report["solver"]["patches"].get<int>(), rounds.back()["patches"].get<int>());
+    const std::string checker = std::string(PENUMBRA_SHARED_DIR) + "/tools/check-report";
+    EXPECT_EQ(std::system(cat("python3 ", checker, " ", out, "/report.json ", scene, " > /dev/null").c_str()), 0);
 }
 
 TEST(CliErrors, RenderWithoutCameraIsRefused) {

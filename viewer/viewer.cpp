@@ -187,13 +187,13 @@ struct Keys {
 // until cancelled; the main thread shows the running mean.
 class Progressive {
 public:
-    Progressive(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity)
-        : scene_(scene), patches_(patches), radiosity_(radiosity) {}
+    Progressive(const Scene& scene, const PatchSet& patches, const CornerValues& corners)
+        : scene_(scene), patches_(patches), corners_(corners) {}
     ~Progressive() { stop(); }
 
     void start(const Camera& camera) {
         stop();
-        if (!solved_) solved_ = std::make_unique<SolvedScene>(scene_, patches_, radiosity_, GatherSettings{}, PhotonSettings{}, 1);
+        if (!solved_) solved_ = std::make_unique<SolvedScene>(scene_, patches_, corners_, GatherSettings{}, PhotonSettings{}, 1);
         camera_ = camera;
         cancel_ = false;
         passes_ = 0;
@@ -227,7 +227,7 @@ public:
 private:
     const Scene& scene_;
     const PatchSet& patches_;
-    const std::vector<Rgb>& radiosity_;
+    const CornerValues& corners_;
     std::unique_ptr<SolvedScene> solved_;   // built on the first G
     Camera camera_;
     std::thread worker_;
@@ -258,7 +258,7 @@ void requireDisplay() {
                     "export DIR --out FILE.glb`, or run the viewer under `xvfb-run -a`");
 }
 
-void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity, const Camera& start,
+void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& corners, const Camera& start,
                const ViewerOptions& options) {
     requireDisplay();
     if (!glfwInit()) throw Error("view: GLFW could not start (no usable display)");
@@ -277,7 +277,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
     glfwSwapInterval(screenshot ? 0 : 1);
 
     // Geometry: the export's mesh (patch corners with their interpolated radiance).
-    const ExportMesh mesh = exportMesh(patches, radiosity);
+    const ExportMesh mesh = exportMesh(patches, corners);
     std::vector<float> vertices;
     for (size_t i = 0; i < mesh.positions.size(); ++i)
         for (const double v : {mesh.positions[i].x(), mesh.positions[i].y(), mesh.positions[i].z(), mesh.radiance[i][0],
@@ -350,7 +350,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rg
     ImGui_ImplOpenGL3_Init("#version 330");
 
     Navigation nav;
-    Progressive progressive(scene, patches, radiosity);
+    Progressive progressive(scene, patches, corners);
     Camera progressiveView;
     GLuint gatherTexture = 0;
     glGenTextures(1, &gatherTexture);

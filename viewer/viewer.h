@@ -25,8 +25,9 @@ struct ViewerOptions {
 // Throws Error, pointing to the headless forms, when there is no display to open a window on.
 void requireDisplay();
 
-// `radiosity`: B per patch. Throws Error when no window can be opened (no display).
-void runViewer(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity, const Camera& start,
+// `corners`: the displayed radiosity at each patch corner. Throws Error when no window can be opened
+// (no display).
+void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& corners, const Camera& start,
                const ViewerOptions& options);
 
 }  // namespace penumbra

@@ -1,0 +1,41 @@
+// The displayed radiosity at the patch corners, from the radiosity equation itself: at each vertex,
+// E + rho sum_j F(x->j) B_j with point-to-patch factors (Lambert's contour formula) and one
+// visibility ray per patch. The mean of the patches around a vertex (interpolateCorners) is what a
+// patch holds on average, which at a room's edge or next to a contact is not the light at the vertex;
+// the equation at the vertex is. Costs one point-to-patch factor per vertex and visible patch, a
+// fraction of the form factors (docs/adaptive.md has the figures).
+#pragma once
+
+#include "core/math.h"
+#include "mesh/patches.h"
+#include "solver/radiosity/form_factor_kernel.h"
+#include "solver/radiosity/form_factors.h"
+#include "solver/radiosity/system.h"
+#include "solver/visibility.h"
+
+namespace penumbra {
+
+// Irradiance at the point x (unit normal n) from the patches j with sees(j), W/m^2. The ray to a
+// patch's centroid gives up the last thousandth of its length at each end: the centroid of a patch
+// of a non-planar quad (the Cornell box's walls) lies a little off the two triangles Embree traces,
+// and must not hide behind its own wall.
+template <typename Sees>
+Rgb irradianceAtPoint(const PatchSet& p, const std::vector<Rgb>& B, const RayScene& rays, const Vec3& x, const Vec3& n,
+                      const Sees& sees) {
+    Rgb h = Rgb::Zero();
+    for (size_t j = 0; j < p.size(); ++j) {
+        if (!sees(j) || !(B[j].maxCoeff() > 0)) continue;
+        const double f = pointPolygonFormFactor(x, n, p.corners[j].data(), p.cornerCount[j]);
+        if (f > 0 && !rays.occluded(x, p.centroid[j], 1e-3)) h += f * B[j];
+    }
+    return h;
+}
+
+// Corner radiosity by the equation at each vertex (averaged over the patches around it within the
+// crease angle, as interpolateCorners does); hanging vertices keep the mean of their coarser edge's
+// ends. `F` limits each vertex to what the patches around it see; an empty F (no matrix: the
+// hierarchy) takes every patch in front of the vertex.
+CornerValues gatherCorners(const PatchSet& patches, const RadiositySystem& system, const FormFactorMatrix& F,
+                           const std::vector<Rgb>& B, const RayScene& rays, double creaseDeg = 30);
+
+}  // namespace penumbra

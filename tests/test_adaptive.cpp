@@ -1,0 +1,169 @@
+// Adaptive subdivision and the displayed vertex radiosity: splits keep the geometry and the 2:1
+// rule, hanging vertices leave no crack, the radiosity equation at the vertices meets the closed
+// form of a point under a rectangle, and refinement puts its patches along a shadow's penumbra.
+#include <gtest/gtest.h>
+
+#include <map>
+#include <set>
+
+#include "fixtures.h"
+#include "mesh/refine.h"
+#include "solver/radiosity/vertex_radiosity.h"
+
+namespace penumbra {
+namespace {
+
+// Form factor from a point, facing up at the origin, to the parallel rectangle [x0,x1] x [y0,y1] at
+// height h facing down (Howell's case B-3 summed over the four corner rectangles).
+double pointToRectangle(double x0, double x1, double y0, double y1, double h) {
+    auto corner = [h](double a, double b) {
+        const double ra = std::sqrt(a * a + h * h), rb = std::sqrt(b * b + h * h);
+        return (a / ra * std::atan(b / ra) + b / rb * std::atan(a / rb)) / (2 * kPi);
+    };
+    return corner(x1, y1) - corner(x0, y1) - corner(x1, y0) + corner(x0, y0);
+}
+
+// A 2 m floor (reflectance 0.5) under a 0.2 m lamp at 1 m (L_e = 10, black), with, optionally, a
+// black 0.4 m square halfway between them casting a shadow whose penumbra runs from 0.3 to 0.5 m off
+// the axis (by similar triangles through the square's edges).
+std::string lampOverFloor(bool occluder) {
+    return std::string(R"({
+      "materials": {"lamp": {"type": "diffuse", "reflectance": 0, "emission": 10},
+                    "floor": {"type": "diffuse", "reflectance": 0.5},
+                    "black": {"type": "diffuse", "reflectance": 0}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "floor", "vertices": [[-1,-1,0],[1,-1,0],[1,1,0],[-1,1,0]]},
+        {"name": "lamp", "type": "quad", "material": "lamp",
+         "vertices": [[-0.1,-0.1,1],[-0.1,0.1,1],[0.1,0.1,1],[0.1,-0.1,1]]})") +
+           (occluder ? R"(,
+        {"name": "square", "type": "quad", "material": "black",
+         "vertices": [[-0.2,-0.2,0.5],[0.2,-0.2,0.5],[0.2,0.2,0.5],[-0.2,0.2,0.5]]})" : "") +
+           "]}";
+}
+
+// The floor's exact radiosity where the whole lamp is in view: rho E F(x -> lamp).
+double unshadowedFloor(const Vec3& x) {
+    return 0.5 * kPi * 10 * pointToRectangle(-0.1 - x.x(), 0.1 - x.x(), -0.1 - x.y(), 0.1 - x.y(), 1);
+}
+
+TEST(Refinement, SplitsKeepTheAreaTheTwoToOneRuleAndLeaveNoCrack) {
+    const Scene scene = test::sceneFromJson(lampOverFloor(true));
+    MeshingOptions o;
+    o.patchSize = 0.25;
+    PatchSet p = meshScene(scene, o);
+    auto objectAreas = [](const PatchSet& s) {
+        std::map<int, double> a;
+        for (size_t i = 0; i < s.size(); ++i) a[s.object[i]] += s.area[i];
+        return a;
+    };
+    const auto before = objectAreas(p);
+    // Split a floor patch, then its child at the edge it shares with an unsplit neighbour, then that
+    // child's: the 2:1 rule must split the neighbours in turn.
+    for (const Vec3& target : {Vec3(-0.6, -0.6, 0), Vec3(-0.52, -0.6, 0), Vec3(-0.505, -0.6, 0)}) {
+        std::vector<char> split(p.size(), 0);
+        size_t nearest = 0;
+        for (size_t i = 0; i < p.size(); ++i)
+            if (p.object[i] == 0 && (p.centroid[i] - target).norm() < (p.centroid[nearest] - target).norm()) nearest = i;
+        split[nearest] = 1;
+        const size_t n = p.size();
+        p = splitPatches(p, split);
+        ASSERT_GE(p.size(), n + 3);
+    }
+    const auto after = objectAreas(p);
+    for (const auto& [object, area] : before) EXPECT_NEAR(after.at(object), area, 1e-12) << "object " << object;
+
+    // 2:1: no vertex sits at a quarter of any patch's edge (a neighbour two levels finer).
+    std::set<std::array<long long, 4>> vertexAt;
+    auto key = [](int object, const Vec3& x) {
+        return std::array<long long, 4>{object, std::llround(x.x() * 1e9), std::llround(x.y() * 1e9), std::llround(x.z() * 1e9)};
+    };
+    for (size_t i = 0; i < p.size(); ++i)
+        for (int k = 0; k < p.cornerCount[i]; ++k) vertexAt.insert(key(p.object[i], p.corners[i][size_t(k)]));
+    for (size_t i = 0; i < p.size(); ++i)
+        for (int k = 0; k < p.cornerCount[i]; ++k) {
+            const Vec3& a = p.corners[i][size_t(k)];
+            const Vec3& b = p.corners[i][size_t((k + 1) % p.cornerCount[i])];
+            const Vec3 m = 0.5 * (a + b);
+            EXPECT_FALSE(vertexAt.count(key(p.object[i], 0.5 * (a + m))) || vertexAt.count(key(p.object[i], 0.5 * (m + b))))
+                << "patch " << i << " edge " << k;
+        }
+
+    // A linear field shown through the hanging vertices: each takes the mean of its coarse edge's
+    // ends, so both sides of the join interpolate the same line.
+    const auto hanging = hangingVertices(p);
+    ASSERT_FALSE(hanging.empty());
+    std::vector<Rgb> value(p.size());
+    for (size_t i = 0; i < p.size(); ++i) value[i] = Rgb::Constant(1 + p.centroid[i].x() + 2 * p.centroid[i].y());
+    const CornerValues corners = interpolateCorners(p, value);
+    for (const HangingVertex& h : hanging) {
+        const Rgb mean = 0.5 * (corners[size_t(h.patch)][size_t(h.cornerA)] + corners[size_t(h.patch)][size_t(h.cornerB)]);
+        for (size_t j = 0; j < p.size(); ++j)
+            for (int k = 0; k < p.cornerCount[j]; ++k)
+                if (p.cornerVertex[j][size_t(k)] == h.vertex) {
+                    ASSERT_DOUBLE_EQ(corners[j][size_t(k)][0], mean[0]);
+                }
+    }
+}
+
+TEST(VertexRadiosity, MeetsTheClosedFormOfAPointUnderARectangle) {
+    SolveOptions o;
+    o.meshing.patchSize = 0.2;
+    const SolveResult r = solveScene(test::sceneFromJson(lampOverFloor(false)), o);
+    ASSERT_EQ(r.corners.size(), r.patches.size());
+    double worst = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        if (r.patches.object[i] != 0) continue;
+        for (int k = 0; k < r.patches.cornerCount[i]; ++k) {
+            const double exact = unshadowedFloor(r.patches.corners[i][size_t(k)]);
+            worst = std::max(worst, std::abs(r.corners[i][size_t(k)][0] - exact) / exact);
+        }
+    }
+    EXPECT_LT(worst, 5e-3);
+}
+
+TEST(Refinement, PutsItsPatchesAlongThePenumbraAndKeepsTheClosedFormOutsideIt) {
+    SolveOptions o;
+    o.meshing.targetPatches = 150;
+    o.refine.tolerance = 0.05;
+    o.refine.maxPatches = 2500;
+    o.refine.maxRounds = 4;
+    const SolveResult r = solveScene(test::sceneFromJson(lampOverFloor(true)), o);
+    ASSERT_GE(r.refinement.size(), 2u);
+    EXPECT_GT(r.patches.size(), r.refinement.front().patches);
+    EXPECT_LE(r.patches.size(), 2500u);
+
+    // The penumbra, 0.3 to 0.5 m off the axis (either way), holds much finer patches than the floor
+    // far from it.
+    double bandArea = 0, farArea = 0;
+    int band = 0, far = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        if (r.patches.object[i] != 0) continue;
+        const double d = r.patches.centroid[i].head<2>().cwiseAbs().maxCoeff();
+        if (d > 0.3 && d < 0.5) bandArea += r.patches.area[i], ++band;
+        if (d > 0.8) farArea += r.patches.area[i], ++far;
+    }
+    ASSERT_GT(band, 0);
+    ASSERT_GT(far, 0);
+    EXPECT_LT(bandArea / band, 0.25 * farArea / far) << band << " patches in the penumbra, " << far << " far off";
+
+    // Outside the penumbra the vertices see the whole lamp (closed form); inside the umbra none of it.
+    const Rgb peak = Rgb::Constant(unshadowedFloor(Vec3::Zero()));
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        if (r.patches.object[i] != 0) continue;
+        for (int k = 0; k < r.patches.cornerCount[i]; ++k) {
+            const Vec3& x = r.patches.corners[i][size_t(k)];
+            const double d = x.head<2>().cwiseAbs().maxCoeff();
+            if (d > 0.55) {
+                EXPECT_NEAR(r.corners[i][size_t(k)][0], unshadowedFloor(x), 5e-3 * unshadowedFloor(x)) << x.transpose();
+            } else if (d < 0.25) {
+                EXPECT_LT(r.corners[i][size_t(k)][0], 1e-3 * peak[0]) << x.transpose();
+            }
+        }
+    }
+    // And the power still balances: emitted = absorbed + escaped.
+    for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(r.power.totalEmitted[c], r.power.totalAbsorbed[c] + r.power.escaped[c], 1e-6 * r.power.totalEmitted[c]);
+}
+
+}  // namespace
+}  // namespace penumbra
