@@ -82,7 +82,15 @@ void addSolveOptions(CLI::App* cmd, SolveCli& s) {
                     ->capture_default_str()->check(CLI::Range(1, 100000000));
     cmd->add_option("--patch-size", s.options.meshing.patchSize, "Target patch edge length in metres (overrides --patches)")
         ->check(CLI::PositiveNumber);
-    cmd->add_option("--solver", s.options.solver, "jacobi | gauss-seidel | southwell")->capture_default_str();
+    cmd->add_option("--solver", s.options.solver,
+                    "auto | jacobi | gauss-seidel | southwell | hierarchical (auto: the matrix when it fits and the scene is "
+                    "small, the hierarchy otherwise; the log says which and why)")
+        ->capture_default_str();
+    cmd->add_option("--link-tolerance", s.options.hierarchy.linkTolerance,
+                    "Hierarchical: split a link while it carries more than this share of the emitted power")
+        ->capture_default_str()->check(CLI::Range(1e-9, 1.0));
+    cmd->add_option("--roots", s.options.hierarchyRoots, "Hierarchical: the scene is meshed into about this many roots")
+        ->capture_default_str()->check(CLI::Range(1, 1000000));
     cmd->add_option("--tolerance", s.options.solverSettings.tolerance,
                     "Stop when the unshot fraction of the emitted power falls below this")
         ->capture_default_str()->check(CLI::PositiveNumber);

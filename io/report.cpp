@@ -92,9 +92,18 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
           {"specular_transfers", r.system.transport.outTarget.size()},
           {"specular_unresolved_share", r.system.transport.unresolvedShare}}},
         {"form_factor_row_sum", {{"min", r.rowSumMin}, {"max", r.rowSumMax}}},
-        {"matrix_mib", double(formFactorMatrixBytes(r.patches.size())) / (1 << 20)},
+        {"matrix_mib", double(formFactorMatrixBytes(r.F.size())) / (1 << 20)},
         {"peak_memory_mib", peakMemory / (1 << 20)},
     };
+    if (!r.solverReason.empty()) report["solver"]["chosen_because"] = r.solverReason;
+    if (r.solverName == "hierarchical") {
+        const HierarchyStats& h = r.hierarchy;
+        report["solver"]["hierarchy"] = {{"roots", h.roots}, {"elements", h.elements}, {"leaves", h.leaves},
+                                         {"links", h.links}, {"partly_visible_links", h.partlyVisibleLinks},
+                                         {"visibility_rays", h.rays}, {"kernel_evaluations", h.kernelEvaluations},
+                                         {"rounds", h.rounds}, {"storage_mib", h.bytes / (1 << 20)},
+                                         {"matrix_of_as_many_patches_mib", double(formFactorMatrixBytes(h.leaves)) / (1 << 20)}};
+    }
     if (!r.refinement.empty()) {
         Json rounds = Json::array();
         for (const RefineRound& round : r.refinement)

@@ -102,6 +102,35 @@ std::vector<std::vector<int>> patchNeighbours(const PatchSet& p) {
     return out;
 }
 
+PatchSet shareVertices(const PatchSet& p) {
+    PatchSet out;
+    VertexIndex index;
+    index.reserve(4 * p.size());
+    for (size_t i = 0; i < p.size(); ++i) {
+        std::array<int, 4> ids;
+        for (int k = 0; k < 4; ++k) {
+            const Vec3& x = p.corners[i][size_t(k)];
+            const auto [it, added] = index.emplace(keyOf(p.object[i], x), int(out.vertices.size()));
+            if (added) out.vertices.push_back(x);
+            ids[size_t(k)] = it->second;
+        }
+        out.add(p.corners[i], p.cornerCount[i], p.object[i], ids);
+    }
+    return out;
+}
+
+void childPolygons(const PatchSet& p, size_t i, std::array<std::array<Vec3, 4>, 4>& out) {
+    const auto& c = p.corners[i];
+    if (p.isTriangle(i)) {
+        const Vec3 ab = midpoint(c[0], c[1]), bc = midpoint(c[1], c[2]), ca = midpoint(c[2], c[0]);
+        out = {{{c[0], ab, ca, ca}, {ab, c[1], bc, bc}, {ca, bc, c[2], c[2]}, {ab, bc, ca, ca}}};
+    } else {
+        const Vec3 ab = midpoint(c[0], c[1]), bc = midpoint(c[1], c[2]), cd = midpoint(c[2], c[3]),
+                   da = midpoint(c[3], c[0]), e = p.pointAt(i, 0.5, 0.5);
+        out = {{{c[0], ab, e, da}, {ab, c[1], bc, e}, {e, bc, c[2], cd}, {da, e, cd, c[3]}}};
+    }
+}
+
 PatchSet splitPatches(const PatchSet& p, std::vector<char>& split) {
     PENUMBRA_CHECK_EQ(split.size(), p.size());
     VertexIndex index = indexVertices(p);
@@ -134,29 +163,16 @@ PatchSet splitPatches(const PatchSet& p, std::vector<char>& split) {
         return it->second;
     };
     for (size_t i = 0; i < p.size(); ++i) {
-        const auto& c = p.corners[i];
-        const auto& id = p.cornerVertex[i];
-        const int o = p.object[i];
         if (!split[i]) {
-            out.add(c, p.cornerCount[i], o, id);
+            out.add(p.corners[i], p.cornerCount[i], p.object[i], p.cornerVertex[i]);
             continue;
         }
-        if (p.isTriangle(i)) {
-            const Vec3 ab = midpoint(c[0], c[1]), bc = midpoint(c[1], c[2]), ca = midpoint(c[2], c[0]);
-            const int iab = vertexAt(o, ab), ibc = vertexAt(o, bc), ica = vertexAt(o, ca);
-            out.add({c[0], ab, ca, ca}, 3, o, {id[0], iab, ica, ica});
-            out.add({ab, c[1], bc, bc}, 3, o, {iab, id[1], ibc, ibc});
-            out.add({ca, bc, c[2], c[2]}, 3, o, {ica, ibc, id[2], id[2]});
-            out.add({ab, bc, ca, ca}, 3, o, {iab, ibc, ica, ica});
-        } else {
-            const Vec3 ab = midpoint(c[0], c[1]), bc = midpoint(c[1], c[2]), cd = midpoint(c[2], c[3]),
-                       da = midpoint(c[3], c[0]), e = p.pointAt(i, 0.5, 0.5);
-            const int iab = vertexAt(o, ab), ibc = vertexAt(o, bc), icd = vertexAt(o, cd), ida = vertexAt(o, da);
-            const int ie = vertexAt(o, e);
-            out.add({c[0], ab, e, da}, 4, o, {id[0], iab, ie, ida});
-            out.add({ab, c[1], bc, e}, 4, o, {iab, id[1], ibc, ie});
-            out.add({e, bc, c[2], cd}, 4, o, {ie, ibc, id[2], icd});
-            out.add({da, e, cd, c[3]}, 4, o, {ida, ie, icd, id[3]});
+        std::array<std::array<Vec3, 4>, 4> children;
+        childPolygons(p, i, children);
+        for (const auto& c : children) {
+            std::array<int, 4> ids;
+            for (int k = 0; k < 4; ++k) ids[size_t(k)] = vertexAt(p.object[i], c[size_t(k)]);
+            out.add(c, p.cornerCount[i], p.object[i], ids);
         }
     }
     return out;

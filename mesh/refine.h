@@ -5,6 +5,7 @@
 // area are unchanged; only the elements that carry radiosity get finer.
 #pragma once
 
+#include <array>
 #include <vector>
 
 #include "mesh/patches.h"
@@ -30,6 +31,15 @@ void joinHangingVertices(const PatchSet& patches, CornerValues& corners, double 
 // Per patch, the patches of the same object that touch it: sharing a vertex, or holding a vertex
 // that hangs on one of its edges.
 std::vector<std::vector<int>> patchNeighbours(const PatchSet& patches);
+
+// The four children of patch i, in its own plane (or bilinear surface) and winding: a quad's at the
+// midpoints of its edges and its parametric centre, a triangle's at its edge midpoints (the middle
+// child last). Triangles repeat their last corner, as in PatchSet.
+void childPolygons(const PatchSet& patches, size_t i, std::array<std::array<Vec3, 4>, 4>& out);
+
+// The same patches with display vertices shared wherever patches of one object meet at a corner
+// (patches made one by one, as the hierarchy's leaves, come with none).
+PatchSet shareVertices(const PatchSet& patches);
 
 // Splits the patches with split[i] != 0 into four, adding splits of coarser neighbours wherever the
 // 2:1 rule needs them; `split` is updated to the splits made. Unsplit patches keep their order, and

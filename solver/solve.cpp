@@ -1,5 +1,6 @@
 #include "solver/solve.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <numeric>
@@ -65,6 +66,8 @@ bool resetPeakMemory() {
 
 namespace {
 
+constexpr size_t kAutoMatrixPatches = 12000;   // past this the n^2 form factors take minutes
+
 // One solve of the matrix system on the patches in `r`: form factors, specular transport, the
 // iterative solve and the power balance. Stage times add to those already in `r`.
 void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObserver& observer, SolveResult& r) {
@@ -112,17 +115,132 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
     r.secondsVertices += vertexTimer.seconds();
 }
 
+
+// The roots with every quad that is not flat (a bilinear patch of a non-planar wall, like the Cornell
+// box's) replaced by the two triangles Embree traces it as: an element's sample points then lie on
+// the traced surface itself, not up to a millimetre off it and hidden behind it.
+PatchSet planarRoots(const PatchSet& p) {
+    PatchSet out;
+    out.vertices = p.vertices;
+    size_t split = 0;
+    for (size_t i = 0; i < p.size(); ++i) {
+        const auto& c = p.corners[i];
+        const auto& id = p.cornerVertex[i];
+        const Vec3 n = (c[1] - c[0]).cross(c[3] - c[0]).normalized();
+        if (p.isTriangle(i) || std::abs(n.dot(c[2] - c[0])) <= 1e-7 * p.radius[i]) {
+            out.add(c, p.cornerCount[i], p.object[i], id);
+            continue;
+        }
+        ++split;
+        out.add({c[0], c[1], c[3], c[3]}, 3, p.object[i], {id[0], id[1], id[3], id[3]});
+        out.add({c[2], c[3], c[1], c[1]}, 3, p.object[i], {id[2], id[3], id[1], id[1]});
+    }
+    if (split) logDebug("hierarchy: ", split, " non-planar root quads split into their two triangles");
+    return out;
+}
+
+// The hierarchy: roots meshed coarsely, elements no finer than the patches `meshing` asks for.
+void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveResult& r) {
+    Timer meshTimer;
+    MeshingOptions rootMeshing;
+    // Roots no finer than the elements asked for.
+    rootMeshing.targetPatches = options.meshing.patchSize > 0 ? options.hierarchyRoots
+                                                              : std::min(options.hierarchyRoots, options.meshing.targetPatches);
+    const PatchSet roots = planarRoots(meshScene(scene, rootMeshing));
+    HierarchySettings settings = options.hierarchy;
+    settings.solver = options.solverSettings;
+    settings.seed = options.formFactors.seed;
+    settings.visibilityRays = options.formFactors.visibilityRays;
+    if (!(settings.minArea > 0)) {
+        const double h = options.meshing.patchSize > 0 ? options.meshing.patchSize
+                                                       : std::sqrt(sceneArea(scene) / options.meshing.targetPatches);
+        settings.minArea = h * h;
+    }
+    const RayScene rootRays(roots);
+    r.secondsMeshing = meshTimer.seconds();
+    HierarchyResult h = solveHierarchy(scene, roots, rootRays, settings);
+    r.hierarchy = h.stats;
+    r.secondsFormFactors = h.stats.secondsLinks;
+    r.secondsSolve = h.stats.secondsSolve;
+    r.patches = std::move(h.leaves);
+    r.rays = std::make_shared<RayScene>(r.patches);
+    r.system = buildSystem(scene, r.patches);
+    r.solution = std::move(h.solution);
+    r.solution.B = h.B;
+    r.solution.display = h.B;
+    r.power.emitted.resize(r.patches.size());
+    r.power.absorbed = h.absorbed;
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        r.power.emitted[i] = r.patches.area[i] * r.system.emission[i];
+        r.power.totalEmitted += r.power.emitted[i];
+        r.power.totalAbsorbed += r.power.absorbed[i];
+    }
+    r.power.escaped = h.escaped;
+    logInfo("hierarchical: ", h.stats.leaves, " leaves (", h.stats.elements, " elements over ", h.stats.roots, " roots), ",
+            h.stats.links, " links, ", h.stats.bytes / (1 << 20), " MiB (the matrix of as many patches: ",
+            double(formFactorMatrixBytes(h.stats.leaves)) / (1 << 20), " MiB), ", h.stats.rays, " rays");
+    // The equation at every vertex costs vertices x leaves: past the matrix's reach, the mean.
+    if (options.gatherVertices) logInfo("hierarchical: displayed vertex radiosity is the mean of the patches around each vertex");
+    r.corners = interpolateCorners(r.patches, r.solution.display);
+}
+
+// What --solver auto runs, and why.
+std::string chooseSolver(const Scene& scene, const SolveOptions& options, size_t n, std::string& why) {
+    const double budget = options.maxMemoryBytes > 0 ? options.maxMemoryBytes : availableMemoryBytes();
+    const double matrix = double(formFactorMatrixBytes(n));
+    const double mib = double(1 << 20);
+    if (scene.hasSpecular()) {
+        why = "the scene has mirrors or glass, whose transport the matrix solve carries and the hierarchy does not";
+        return "gauss-seidel";
+    }
+    if (options.refine.tolerance > 0) {
+        why = "--refine subdivides the matrix solve's mesh";
+        return "gauss-seidel";
+    }
+    if (n <= kAutoMatrixPatches && (budget <= 0 || matrix <= 0.5 * budget)) {
+        why = cat("the matrix of ", n, " patches takes ", matrix / mib, " MiB", budget > 0 ? cat(" of ", budget / mib, " MiB available") : "");
+        return "gauss-seidel";
+    }
+    why = cat("the matrix of ", n, " patches would take ", matrix / mib, " MiB",
+              n > kAutoMatrixPatches ? cat(" and its form factors grow as n^2 past ", kAutoMatrixPatches, " patches") : " (more than half the memory)",
+              "; the hierarchy's links grow about as n");
+    return "hierarchical";
+}
+
 }  // namespace
+
+std::vector<std::string> allSolverNames() {
+    std::vector<std::string> names{"auto"};
+    for (const std::string& name : solverNames()) names.push_back(name);
+    names.push_back("hierarchical");
+    return names;
+}
 
 SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer) {
     SolveResult r;
-    makeSolver(options.solver);   // an unknown name fails before any work
+    const auto names = allSolverNames();
+    if (std::find(names.begin(), names.end(), options.solver) == names.end()) {
+        std::string known;
+        for (const std::string& name : names) known += cat(known.empty() ? "" : ", ", name);
+        throw Error(cat("--solver: unknown solver '", options.solver, "' (known: ", known, ")"));
+    }
     r.solverName = options.solver;
-
     Timer meshTimer;
-    r.patches = meshScene(scene, options.meshing);
+    if (r.solverName != "hierarchical") r.patches = meshScene(scene, options.meshing);
     r.secondsMeshing = meshTimer.seconds();
-    solveMatrix(scene, options, observer, r);
+    if (r.solverName == "auto") {
+        r.solverName = chooseSolver(scene, options, r.patches.size(), r.solverReason);
+        logInfo("solver: ", r.solverName, ", because ", r.solverReason);
+    }
+    if (r.solverName == "hierarchical") {
+        if (options.refine.tolerance > 0)
+            throw Error("--refine works on the matrix solve's mesh; the hierarchy refines itself (use one or the other)");
+        solveHierarchical(scene, options, r);
+        return r;
+    }
+    SolveOptions matrix = options;
+    matrix.solver = r.solverName;
+    solveMatrix(scene, matrix, observer, r);
 
     const RefineSettings& refine = options.refine;
     if (!(refine.tolerance > 0)) return r;
@@ -160,7 +278,7 @@ SolveResult solveScene(const Scene& scene, const SolveOptions& options, const St
                 finer.size(), " patches");
         r.patches = std::move(finer);
         r.secondsMeshing += timer.seconds();
-        solveMatrix(scene, options, observer, r);
+        solveMatrix(scene, matrix, observer, r);
         r.refinement.push_back({r.patches.size(), choice.byGradient, choice.byShadow, made,
                                 r.secondsMeshing + r.secondsFormFactors + r.secondsSpecular + r.secondsSolve + r.secondsVertices});
     }

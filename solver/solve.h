@@ -8,6 +8,7 @@
 #include "mesh/patches.h"
 #include "mesh/scene.h"
 #include "solver/radiosity/form_factors.h"
+#include "solver/radiosity/hierarchy.h"
 #include "solver/radiosity/refinement.h"
 #include "solver/radiosity/solvers.h"
 #include "solver/radiosity/system.h"
@@ -19,7 +20,9 @@ struct SolveOptions {
     MeshingOptions meshing;
     FormFactorSettings formFactors;
     SpecularSettings specular;
-    std::string solver = "gauss-seidel";
+    std::string solver = "auto";   // auto: the matrix when it fits and the scene is small, else the hierarchy
+    HierarchySettings hierarchy;   // --solver hierarchical (its minArea follows from `meshing`)
+    int hierarchyRoots = 256;      // the hierarchy's roots: the scene meshed this coarsely
     SolverSettings solverSettings;
     RefineSettings refine;      // adaptive subdivision after the first solve (off by default)
     bool gatherVertices = true; // displayed corner radiosity by the equation at each vertex (else the mean around it)
@@ -34,7 +37,9 @@ struct RefineRound {
 };
 
 struct SolveResult {
-    std::string solverName;
+    std::string solverName;     // the solver that ran (auto resolved)
+    std::string solverReason;   // why auto chose it (empty when named)
+    HierarchyStats hierarchy;   // --solver hierarchical only
     PatchSet patches;
     std::shared_ptr<RayScene> rays;   // the patches' ray-tracing scene, for views of the result
     FormFactorMatrix F;
@@ -48,6 +53,9 @@ struct SolveResult {
 };
 
 SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer = {});
+
+// The names --solver accepts, in the order shown to users.
+std::vector<std::string> allSolverNames();
 
 // Bytes of memory available to this process (MemAvailable), or 0 if unknown.
 double availableMemoryBytes();

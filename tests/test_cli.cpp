@@ -105,7 +105,7 @@ TEST(CliErrors, ClosedWhiteFurnaceHasNoSteadyState) {
 
 TEST(CliErrors, OptionProblems) {
     expectRefused(sceneWith("", ""), {"unknown solver 'magic'", "jacobi", "gauss-seidel", "southwell"}, "--solver magic");
-    expectRefused(sceneWith("", ""), {"--max-memory", "patches fit"}, "--max-memory 0.000001");
+    expectRefused(sceneWith("", ""), {"--max-memory", "patches fit"}, "--solver gauss-seidel --max-memory 0.000001");
     expectRefused(sceneWith("", ""), {"--refine"}, "--refine -1");
     expectRefused(sceneWith("", ""), {"--vertex-radiosity", "gather"}, "--vertex-radiosity nearest");
     const CommandResult missing = run("solve /nonexistent/scene.json --out " + test::tempDir() + "/never");

@@ -41,12 +41,14 @@ TEST(Furnace, SceneFileReachesItsClosedForm) {
 
 INSTANTIATE_TEST_SUITE_P(Extremes, Furnace,
                          ::testing::Combine(::testing::Values(0.5, 0.9, 0.99, 0.999),
-                                            ::testing::Values("jacobi", "gauss-seidel", "southwell")));
+                                            ::testing::Values("jacobi", "gauss-seidel", "southwell", "hierarchical")));
 
-TEST(Energy, TwoSquaresExchangeTheClosedFormPower) {
+class TwoSquares : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(TwoSquares, ExchangeTheClosedFormPower) {
     // scenes/parallel-squares.json: a black emitter and a black receiver, unit squares 1 apart; the
     // receiver absorbs pi L_e A F = pi * 2 * 0.19982 W; the rest escapes.
-    const SolveResult r = solve(sceneFile("parallel-squares.json"), 200);
+    const SolveResult r = solve(sceneFile("parallel-squares.json"), 200, GetParam());
     Rgb receiver = Rgb::Zero();
     for (size_t i = 0; i < r.patches.size(); ++i)
         if (r.patches.object[i] == 1) receiver += r.power.absorbed[i];
@@ -56,6 +58,8 @@ TEST(Energy, TwoSquaresExchangeTheClosedFormPower) {
         EXPECT_NEAR(r.power.escaped[c], kPi * 2 - expected, 0.005 * expected);
     }
 }
+
+INSTANTIATE_TEST_SUITE_P(Energy, TwoSquares, ::testing::Values("gauss-seidel", "hierarchical"));
 
 TEST(Energy, OpenScenePowerBalances) {
     const std::string json = R"({"materials": {"lamp": {"type": "diffuse", "reflectance": 0.3, "emission": [3, 2, 1]},
@@ -73,8 +77,10 @@ TEST(Energy, OpenScenePowerBalances) {
     }
 }
 
-TEST(Energy, CornellBoxPowerBalances) {
-    const SolveResult r = solve(cornellBox(), 200);
+class CornellPower : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(CornellPower, Balances) {
+    const SolveResult r = solve(cornellBox(), 200, GetParam());
     for (int c = 0; c < 3; ++c) {
         const double e = r.power.totalEmitted[c];
         // The lamp's area is 0.13 x 0.105 m^2 and its exitance pi L_e.
@@ -84,6 +90,8 @@ TEST(Energy, CornellBoxPowerBalances) {
         EXPECT_GT(r.power.escaped[c], 0);
     }
 }
+
+INSTANTIATE_TEST_SUITE_P(Energy, CornellPower, ::testing::Values("gauss-seidel", "hierarchical"));
 
 class EnergyEveryStep : public ::testing::TestWithParam<std::string> {};
 
@@ -142,14 +150,19 @@ TEST_F(Convergence, ResidualFallsMonotonicallyAndGaussSeidelIsFaster) {
     EXPECT_LT(gs.iterations, jacobi.iterations);
 }
 
-TEST(Determinism, ResultsDoNotDependOnTheThreadCount) {
-    // Randomness is seeded per patch pair, never per thread: one thread and two give the same bits.
+class Determinism : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(Determinism, ResultsDoNotDependOnTheThreadCount) {
+    // Randomness is seeded per patch pair (or link), never per thread: one thread and two give the
+    // same bits.
     setThreadCount(1);
-    const SolveResult one = solve(cornellBox(), 150);
+    const SolveResult one = solve(cornellBox(), 600, GetParam());
     setThreadCount(2);
-    const SolveResult two = solve(cornellBox(), 150);
+    const SolveResult two = solve(cornellBox(), 600, GetParam());
     setThreadCount(0);
     ASSERT_EQ(one.patches.size(), two.patches.size());
     for (size_t i = 0; i < one.patches.size(); ++i)
         for (int c = 0; c < 3; ++c) ASSERT_EQ(one.solution.B[i][c], two.solution.B[i][c]) << "patch " << i;
 }
+
+INSTANTIATE_TEST_SUITE_P(Solvers, Determinism, ::testing::Values("gauss-seidel", "hierarchical"));

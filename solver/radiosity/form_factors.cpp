@@ -12,23 +12,6 @@
 namespace penumbra {
 namespace {
 
-// Where the corners of patch b lie relative to patch a's plane (beyond a tolerance, so corners on
-// the plane, as along a shared edge, count for neither side).
-struct PlaneSides {
-    bool front = false, behind = false;
-    bool straddles() const { return front && behind; }
-};
-PlaneSides planeSides(const PatchSet& p, size_t a, size_t b) {
-    const double eps = 1e-9 * (p.boundingRadius(a) + p.boundingRadius(b));
-    PlaneSides sides;
-    for (int k = 0; k < p.cornerCount[b]; ++k) {
-        const double h = p.normal[a].dot(p.corners[b][size_t(k)] - p.centroid[a]);
-        sides.front = sides.front || h > eps;
-        sides.behind = sides.behind || h < -eps;
-    }
-    return sides;
-}
-
 // A point of patch i in stratum k of a side x side grid, jittered. Points keep a margin of 1e-3 of
 // the patch from its edges: a segment from a point exactly on an edge can graze along a seam (the
 // top edge of a wall, a wall-ceiling joint) in float precision and slip past a thin occluder.
@@ -42,16 +25,21 @@ Vec3 stratifiedPoint(const PatchSet& p, size_t i, int k, int side, Rng& rng) {
     return p.pointAt(i, inset(u), inset(v));
 }
 
-struct Visibility {
-    double fraction;
-    int rays;
-};
-
 // How far segment endpoints are lifted off their patches, towards the face that takes part: enough
 // that a segment arriving at a grazing angle is not stopped by its own endpoint patch in float
 // precision, far below any real gap between surfaces.
+// A quad that is not flat (a patch of the Cornell box's non-planar walls) is traced as two
+// triangles while its points lie on the bilinear surface, up to its warp away from them: the lift
+// clears that too, or the patch's own triangles hide half its points.
 double liftDistance(const PatchSet& p, size_t i) {
-    return 1e-4 * p.boundingRadius(i) + 1e-6 * p.centroid[i].cwiseAbs().maxCoeff();
+    double warp = 0;
+    if (!p.isTriangle(i)) {
+        const auto& c = p.corners[i];
+        const Vec3 n = (c[1] - c[0]).cross(c[3] - c[0]);
+        const double len = n.norm();
+        if (len > 0) warp = std::abs(n.dot(c[2] - c[0])) / len;
+    }
+    return 1e-4 * p.boundingRadius(i) + 1e-6 * p.centroid[i].cwiseAbs().maxCoeff() + warp;
 }
 
 // The part of patch b on the `side` of patch a's plane, as a convex polygon (up to 8 corners)
@@ -94,12 +82,20 @@ Vec3 uniformPoint(const ClippedPolygon& c, Rng& rng) {
     return c.v[0] + s * (c.v[k] - c.v[0]) + t * (c.v[k + 1] - c.v[0]);
 }
 
-// Fraction of segments between the two patches that nothing blocks: `base` stratified rays, then
-// four times as many when the first ones disagree (a shadow boundary crosses the pair). The
-// endpoints are lifted off the faces that exchange light: sideA, sideB = +1 front, -1 back.
-// Where a patch straddles the other's plane, only its part on the facing side exchanges light
-// (the analytic factor clips the rest), so the segments are drawn from that part alone: `clipped`
-// says whether either patch straddles the other's plane.
+}  // namespace
+
+PlaneSides planeSides(const PatchSet& p, size_t a, size_t b) {
+    const double eps = 1e-9 * (p.boundingRadius(a) + p.boundingRadius(b));
+    PlaneSides sides;
+    for (int k = 0; k < p.cornerCount[b]; ++k) {
+        const double h = p.normal[a].dot(p.corners[b][size_t(k)] - p.centroid[a]);
+        sides.front = sides.front || h > eps;
+        sides.behind = sides.behind || h < -eps;
+    }
+    return sides;
+}
+
+
 Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, size_t b, int sideA, int sideB,
                            bool clipped, int base, uint64_t seed) {
     Rng rng(mixSeed(seed, a, b));
@@ -126,7 +122,6 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
     return {double(visible) / rays, rays};
 }
 
-}  // namespace
 
 FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& scene, const FormFactorSettings& settings) {
     Timer timer;

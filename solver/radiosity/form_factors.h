@@ -59,6 +59,25 @@ private:
 // Bytes the dense matrix of n patches needs.
 inline uint64_t formFactorMatrixBytes(uint64_t n) { return n * n * sizeof(float); }
 
+// Where the corners of patch b lie relative to patch a's plane (beyond a tolerance, so corners on
+// the plane, as along a shared edge, count for neither side).
+struct PlaneSides {
+    bool front = false, behind = false;
+    bool straddles() const { return front && behind; }
+};
+PlaneSides planeSides(const PatchSet& p, size_t a, size_t b);
+
+// Fraction of segments between patches a and b that nothing blocks: `base` stratified rays, then
+// four times as many when the first ones disagree (a shadow boundary crosses the pair). The
+// endpoints are lifted off the faces that exchange light: sideA, sideB = +1 front, -1 back. Where
+// a patch straddles the other's plane (`clipped`), the segments start on its facing part alone.
+struct Visibility {
+    double fraction;
+    int rays;
+};
+Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, size_t b, int sideA, int sideB,
+                           bool clipped, int base, uint64_t seed);
+
 FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings);
 
 // The row sums sum_j F(i, j) (front faces only), in double.

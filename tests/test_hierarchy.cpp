@@ -1,0 +1,158 @@
+// Hierarchical radiosity against the matrix solve and the closed forms: the same radiosity per
+// object, links that grow about linearly with the elements, refinement along partial visibility,
+// the closed form away from it, and the choice `--solver auto` makes.
+#include <gtest/gtest.h>
+
+#include <map>
+
+#include "fixtures.h"
+
+namespace penumbra {
+namespace {
+
+using test::sceneFile;
+
+std::map<int, Rgb> objectMeans(const SolveResult& r) {
+    std::map<int, Rgb> sum;
+    std::map<int, double> area;
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        sum.try_emplace(r.patches.object[i], Rgb::Zero()).first->second += r.patches.area[i] * r.solution.B[i];
+        area[r.patches.object[i]] += r.patches.area[i];
+    }
+    for (auto& [o, s] : sum) s /= area[o];
+    return sum;
+}
+
+TEST(Hierarchy, ReachesTheMatrixSolvesRadiosityPerObject) {
+    const std::string box = sceneFile("cornell-box.json");
+    const SolveResult matrix = test::solve(box, 1500, "gauss-seidel");
+    const SolveResult hierarchy = test::solve(box, 1500, "hierarchical");
+    EXPECT_EQ(hierarchy.solverName, "hierarchical");
+    EXPECT_EQ(hierarchy.F.size(), 0u) << "no matrix";
+    const auto a = objectMeans(matrix), b = objectMeans(hierarchy);
+    ASSERT_EQ(a.size(), b.size());
+    for (const auto& [o, m] : a)
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(b.at(o)[c], m[c], 0.05 * m[c]) << "object " << o << " channel " << c;
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(hierarchy.power.totalAbsorbed[c], matrix.power.totalAbsorbed[c], 0.01 * matrix.power.totalAbsorbed[c]);
+        const double e = hierarchy.power.totalEmitted[c];
+        EXPECT_NEAR(hierarchy.power.totalAbsorbed[c] + hierarchy.power.escaped[c], e, 1e-4 * e);
+    }
+}
+
+TEST(Hierarchy, LinksGrowAboutLinearlyWithTheElements) {
+    const std::string box = sceneFile("cornell-box.json");
+    SolveOptions o;
+    o.solver = "hierarchical";
+    o.hierarchyRoots = 64;
+    o.meshing.targetPatches = 1000;
+    const SolveResult coarse = solveScene(test::sceneFromJson(box), o);
+    o.meshing.targetPatches = 16000;
+    const SolveResult fine = solveScene(test::sceneFromJson(box), o);
+    const double nc = double(coarse.hierarchy.leaves), nf = double(fine.hierarchy.leaves);
+    ASSERT_GT(nf, 3 * nc);
+    const double perLeafCoarse = double(coarse.hierarchy.links) / nc, perLeafFine = double(fine.hierarchy.links) / nf;
+    // Linear: the links per leaf barely change while the leaves grow; the matrix's grow as n.
+    EXPECT_LT(perLeafFine, 1.5 * perLeafCoarse) << perLeafCoarse << " links per leaf at " << nc << " leaves, " << perLeafFine
+                                                << " at " << nf;
+    EXPECT_LT(double(fine.hierarchy.links), 0.1 * nf * nf);
+    EXPECT_LT(fine.hierarchy.bytes, 0.5 * double(formFactorMatrixBytes(size_t(nf))));
+}
+
+// The lamp over a floor with a black square between (as in test_adaptive.cpp): penumbra 0.3 to
+// 0.5 m off the axis.
+const char* kShadowScene = R"({
+  "materials": {"lamp": {"type": "diffuse", "reflectance": 0, "emission": 10},
+                "floor": {"type": "diffuse", "reflectance": 0.5},
+                "black": {"type": "diffuse", "reflectance": 0}},
+  "objects": [
+    {"name": "floor", "type": "quad", "material": "floor", "vertices": [[-1,-1,0],[1,-1,0],[1,1,0],[-1,1,0]]},
+    {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[-0.1,-0.1,1],[-0.1,0.1,1],[0.1,0.1,1],[0.1,-0.1,1]]},
+    {"name": "square", "type": "quad", "material": "black", "vertices": [[-0.2,-0.2,0.5],[0.2,-0.2,0.5],[0.2,0.2,0.5],[-0.2,0.2,0.5]]}]})";
+
+double pointToRectangle(double x0, double x1, double y0, double y1, double h) {
+    auto corner = [h](double a, double b) {
+        const double ra = std::sqrt(a * a + h * h), rb = std::sqrt(b * b + h * h);
+        return (a / ra * std::atan(b / ra) + b / rb * std::atan(a / rb)) / (2 * kPi);
+    };
+    return corner(x1, y1) - corner(x0, y1) - corner(x1, y0) + corner(x0, y0);
+}
+
+TEST(Hierarchy, RefinesAlongThePenumbraAndMeetsTheClosedFormAwayFromIt) {
+    SolveOptions o;
+    o.solver = "hierarchical";
+    o.meshing.targetPatches = 200000;   // the finest elements allowed: far below what the light needs
+    o.hierarchyRoots = 16;
+    const SolveResult r = solveScene(test::sceneFromJson(kShadowScene), o);
+    // Roots of 0.5 m: the floor's outer twelve (off the axis by more than 0.5 m) lie wholly
+    // outside the penumbra, and every link landing there stays there, so push-pull keeps the power
+    // they receive: it must be the closed form's, integrated over them (a fine midpoint rule).
+    double bandArea = 0, farArea = 0, farPower = 0;
+    int band = 0, far = 0;
+    const double peak = 0.5 * kPi * 10 * pointToRectangle(-0.1, 0.1, -0.1, 0.1, 1);
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        if (r.patches.object[i] != 0) continue;
+        const double d = r.patches.centroid[i].head<2>().cwiseAbs().maxCoeff();
+        if (d > 0.3 && d < 0.5) bandArea += r.patches.area[i], ++band;
+        if (d > 0.5) farArea += r.patches.area[i], ++far, farPower += r.patches.area[i] * r.solution.B[i][0];
+        if (d < 0.25) {
+            EXPECT_LT(r.solution.B[i][0], 1e-3 * peak) << "umbra";
+        }
+    }
+    double exact = 0;
+    const int grid = 400;
+    for (int a = 0; a < grid; ++a)
+        for (int b = 0; b < grid; ++b) {
+            const double x = -1 + (a + 0.5) * 2.0 / grid, y = -1 + (b + 0.5) * 2.0 / grid;
+            if (std::max(std::abs(x), std::abs(y)) <= 0.5) continue;
+            exact += 0.5 * kPi * 10 * pointToRectangle(-0.1 - x, 0.1 - x, -0.1 - y, 0.1 - y, 1) * (4.0 / grid / grid);
+        }
+    EXPECT_NEAR(farPower, exact, 5e-3 * exact);
+    ASSERT_GT(band, 0);
+    ASSERT_GT(far, 0);
+    EXPECT_LT(bandArea / band, farArea / far) << band << " leaves in the penumbra, " << far << " far off";
+    EXPECT_GT(r.hierarchy.partlyVisibleLinks, 0u);
+    // The same floor without the square: what the band gets without partial visibility.
+    std::string open = kShadowScene;
+    open = open.substr(0, open.find(",\n    {\"name\": \"square\"")) + "]}";
+    const SolveResult unshadowed = solveScene(test::sceneFromJson(open, "open.json"), o);
+    double openArea = 0;
+    int openBand = 0;
+    for (size_t i = 0; i < unshadowed.patches.size(); ++i) {
+        const double d = unshadowed.patches.centroid[i].head<2>().cwiseAbs().maxCoeff();
+        if (unshadowed.patches.object[i] == 0 && d > 0.3 && d < 0.5) openArea += unshadowed.patches.area[i], ++openBand;
+    }
+    ASSERT_GT(openBand, 0);
+    // One more level over half the band at least (the flag refines until a link carries a tenth of
+    // the tolerance: 2.9x smaller leaves here, measured).
+    EXPECT_LT(bandArea / band, 0.5 * openArea / openBand) << "the penumbra's leaves against the same floor unshadowed";
+}
+
+TEST(Hierarchy, RefusesMirrorsAndGlassByName) {
+    try {
+        test::solve(sceneFile("cornell-glass.json"), 300, "hierarchical");
+        FAIL() << "expected an error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("mirror or glass"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("object '"), std::string::npos) << e.what();
+    }
+}
+
+TEST(Hierarchy, AutoPicksTheMatrixWhenItFitsAndTheHierarchyWhenNot) {
+    SolveOptions o;   // solver "auto" by default
+    o.meshing.targetPatches = 300;
+    const Scene box = test::sceneFromJson(sceneFile("cornell-box.json"));
+    const SolveResult small = solveScene(box, o);
+    EXPECT_EQ(small.solverName, "gauss-seidel");
+    EXPECT_NE(small.solverReason.find("MiB"), std::string::npos) << small.solverReason;
+    o.maxMemoryBytes = 100e3;   // 300 patches need 360 kB of matrix: more than half of this
+    const SolveResult tight = solveScene(box, o);
+    EXPECT_EQ(tight.solverName, "hierarchical");
+    EXPECT_NE(tight.solverReason.find("hierarchy"), std::string::npos) << tight.solverReason;
+    o.maxMemoryBytes = 0;
+    const SolveResult glass = solveScene(test::sceneFromJson(sceneFile("cornell-glass.json"), "glass.json"), o);
+    EXPECT_EQ(glass.solverName, "gauss-seidel") << "mirrors and glass need the matrix";
+}
+
+}  // namespace
+}  // namespace penumbra
