@@ -397,6 +397,9 @@ int main(int argc, char** argv) {
     benchCmd->add_option("scene", benchOptions.scene, "Scene JSON file (with a camera)")->required();
     benchCmd->add_option("--out", benchOptions.out, "Output directory (trade.csv, summary.md, plots)")->required();
     benchCmd->add_flag("--quick", benchOptions.quick, "A one-minute version: fewer, smaller runs");
+    benchCmd->add_option("--only", benchOptions.only,
+                         "Just these sweeps and the defaults (patches, adaptive, hierarchical, spp, path, ...)")
+        ->delimiter(',');
     benchCmd->add_option("--resolution", benchResolution, "WIDTHxHEIGHT of the images compared (default 256 wide, quick 64)");
     benchCmd->add_option("--reference-spp", benchOptions.referenceSpp,
                          "Samples per pixel of the path-traced reference (default 4096, quick 1024)")

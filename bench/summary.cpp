@@ -127,7 +127,9 @@ Targets targetsOf(const BenchResult& r) {
 
 std::string settingText(const Setting& s) {
     if (s.method == "path") return cat(s.spp, " spp");
-    std::string t = cat(s.patches, " patches");
+    std::string t = s.solver == "hierarchical" ? cat("hierarchical, finest as ", s.patches, " patches")
+                    : s.refine > 0                ? cat("adaptive from ", s.patches, " patches to ", s.refine, ", at most ", s.refineBudget)
+                                                  : cat(s.patches, " patches");
     if (s.visibilityRays != FormFactorSettings{}.visibilityRays) t += cat(", ", s.visibilityRays, " vis. rays");
     if (s.ffTolerance != CubatureSettings{}.tolerance) t += cat(", FF tol ", s.ffTolerance);
     if (s.tolerance != SolverSettings{}.tolerance) t += cat(", tol ", s.tolerance);
@@ -173,6 +175,50 @@ std::string tradeCsv(const std::vector<Row>& rows) {
                    opt(r.objectErrorMax), ",", opt(r.objectErrorMean), ",", r.pareto ? 1 : 0, "\n");
     }
     return csv;
+}
+
+// The radiosity views of one mesh kind: the uniform patch sweep, adaptive subdivision or the
+// hierarchy, by patch count.
+std::vector<const Row*> meshRows(const std::vector<Row>& rows, const std::string& kind) {
+    std::vector<const Row*> out;
+    for (const Row& x : rows) {
+        if (x.setting.method != "radiosity") continue;
+        const bool uniform = x.setting.sweep == "patches" || x.setting.sweep == "default";
+        if ((kind == "uniform" && uniform) || x.setting.sweep == kind) out.push_back(&x);
+    }
+    std::sort(out.begin(), out.end(), [](const Row* a, const Row* b) { return a->patchesMade < b->patchesMade; });
+    return out;
+}
+
+// Patches a uniform mesh needs for `error`: log-log between the two uniform runs around it.
+double uniformPatchesFor(const std::vector<const Row*>& uniform, double error) {
+    for (size_t k = 1; k < uniform.size(); ++k) {
+        const Row &a = *uniform[k - 1], &b = *uniform[k];
+        if ((a.imageError - error) * (b.imageError - error) <= 0 && a.imageError != b.imageError) {
+            const double t = std::log(error / a.imageError) / std::log(b.imageError / a.imageError);
+            return std::exp(std::log(double(a.patchesMade)) + t * std::log(double(b.patchesMade) / a.patchesMade));
+        }
+    }
+    return -1;   // outside the uniform sweep
+}
+
+std::string meshesMarkdown(const std::vector<Row>& rows) {
+    const auto uniform = meshRows(rows, "uniform");
+    std::string md = "\n## Model only what the light needs: uniform, adaptive and hierarchical meshes\n\n"
+                     "Radiosity views. *Uniform patches for this error*: the uniform sweep interpolated on log-log "
+                     "axes; the ratio is how many times fewer patches (elements) this mesh needed.\n\n"
+                     "![error against patches](meshes.png) ![storage against patches](storage.png)\n\n"
+                     "| mesh | setting | patches / leaves | seconds | error | uniform patches for this error | ratio | "
+                     "storage MiB | links |\n|---|---|---|---|---|---|---|---|---|\n";
+    for (const char* kind : {"uniform", "adaptive", "hierarchical"})
+        for (const Row* x : meshRows(rows, kind)) {
+            const double u = std::string(kind) == "uniform" ? -1 : uniformPatchesFor(uniform, x->imageError);
+            md += cat("| ", kind, " | ", settingText(x->setting), " | ", x->patchesMade, " | ", fixed(x->total(), 2), " | ",
+                      percent(x->imageError), " | ", u > 0 ? cat(std::lround(u)) : "-", " | ",
+                      u > 0 ? cat(fixed(u / x->patchesMade, 2), "x") : "-", " | ", fixed(x->storageMiB, 2), " | ",
+                      x->links ? cat(x->links) : "-", " |\n");
+        }
+    return md;
 }
 
 std::string summaryMarkdown(const BenchResult& r) {
@@ -254,6 +300,8 @@ std::string summaryMarkdown(const BenchResult& r) {
               fixed(b.gaussSeidelSeconds * 1e3, 1), " ms) | read stream on 1 thread ", fixed(b.readGBs1, 1), " GB/s | ",
               percent(b.gaussSeidelGBs / b.readGBs1), " |\n");
 
+    md += meshesMarkdown(r.rows);
+
     md += "\n## Threads\n\n| stage | size | 1 thread (s) | all threads (s) | speed-up | results identical |\n|---|---|---|---|---|---|\n";
     for (const ThreadScaling& s : r.threads)
         md += cat("| ", s.stage, " | ", s.size, " | ", fixed(s.oneThread, 2), " | ", fixed(s.allThreads, 2), " (", s.threads,
@@ -334,6 +382,12 @@ bool writePlots(const BenchResult& r, const std::string& dir) {
     std::string cost = "# patches seconds_form_factors seconds_solve peak_memory_mib matrix_mib\n";
     for (const Row* x : solves) cost += cat(x->patchesMade, " ", x->formFactors, " ", x->solve, " ", x->peakMiB, " ", x->matrixMiB, "\n");
     writeFileAtomic((data / "cost.dat").string(), cost);
+    for (const char* kind : {"uniform", "adaptive", "hierarchical"}) {
+        std::string text = "# patches seconds_total image_error_blurred storage_mib links\n";
+        for (const Row* x : meshRows(r.rows, kind))
+            text += cat(x->patchesMade, " ", x->total(), " ", x->imageError, " ", x->storageMiB, " ", x->links, "\n");
+        writeFileAtomic((data / cat("mesh-", kind, ".dat")).string(), text);
+    }
     const double nMax = solves.empty() ? 1 : solves.back()->patchesMade;
     const double c = solves.empty() ? 0 : solves.back()->formFactors / (nMax * nMax);
 
@@ -360,7 +414,22 @@ bool writePlots(const BenchResult& r, const std::string& dir) {
         "     'plot-data/cost.dat' using 1:3 with linespoints pt 5 lw 2 lc rgb '#1b9e77' title 'solve (s)', \\\n"
         "     'plot-data/cost.dat' using 1:4 axes x1y2 with linespoints pt 9 lw 2 lc rgb '#7570b3' title 'peak memory (MiB, right)', \\\n"
         "     'plot-data/cost.dat' using 1:5 axes x1y2 with linespoints pt 4 dt 3 lc rgb '#e7298a' title 'matrix n^2 x 4 bytes (MiB, right)', \\\n"
-        "     [x=50:", nMax * 1.5, "] ", c, " * x**2 with lines dt 2 lc rgb 'gray40' title 'n^2 through the largest form-factor time'\n");
+        "     [x=50:", nMax * 1.5, "] ", c, " * x**2 with lines dt 2 lc rgb 'gray40' title 'n^2 through the largest form-factor time'\n"
+        "unset y2label\nunset y2tics\nunset logscale y2\nset ytics mirror\n"
+        "set output 'meshes.png'\n"
+        "set title \"", r.scene, ": radiosity view error against patches (", r.machine, ")\" noenhanced\n"
+        "set logscale xy\nset xlabel 'patches (hierarchy: leaves)'\nset ylabel 'mean relative error after a 5x5 blur'\n"
+        "set key top right box opaque\n"
+        "plot 'plot-data/mesh-uniform.dat' using 1:3 with linespoints pt 7 lw 2 lc rgb '#7570b3' title 'uniform', \\\n"
+        "     'plot-data/mesh-adaptive.dat' using 1:3 with linespoints pt 5 lw 2 lc rgb '#1b9e77' title 'adaptive (--refine)', \\\n"
+        "     'plot-data/mesh-hierarchical.dat' using 1:3 with linespoints pt 9 lw 2 lc rgb '#d95f02' title 'hierarchical'\n"
+        "set output 'storage.png'\n"
+        "set title \"", r.scene, ": storage of the light transport against patches\" noenhanced\n"
+        "set ylabel 'MiB (links: count)'\nset key top left box opaque\n"
+        "plot 'plot-data/mesh-uniform.dat' using 1:4 with linespoints pt 7 lw 2 lc rgb '#7570b3' title 'matrix (MiB)', \\\n"
+        "     'plot-data/mesh-hierarchical.dat' using 1:4 with linespoints pt 9 lw 2 lc rgb '#d95f02' title 'hierarchy: elements + links (MiB)', \\\n"
+        "     'plot-data/mesh-hierarchical.dat' using 1:($5/1e6) with linespoints pt 6 dt 2 lw 2 lc rgb '#e7298a' title 'hierarchy: links (millions)', \\\n"
+        "     [x=100:300000] 4*x**2/2**20 with lines dt 3 lc rgb 'gray40' title 'n^2 floats (MiB)'\n");
     writeFileAtomic((d / "plots.gp").string(), script);
     if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) {
         logWarning("gnuplot not found: no plots (install gnuplot-nox, or run `bash scripts/bootstrap.sh build`); ",

@@ -31,6 +31,7 @@
 namespace penumbra::bench {
 namespace {
 
+
 // The settings every sweep starts from: the command line's defaults (quick: smaller).
 struct Baseline {
     int patches = MeshingOptions{}.targetPatches;
@@ -116,6 +117,16 @@ std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b)
         s.patches = v;
         s.ffTolerance = 1e-3;
     });
+    // Meshes that model only what the light needs, against the uniform patch sweep: adaptive
+    // subdivision from 250 patches, and the hierarchy (its finest elements those of a uniform mesh
+    // of this many patches).
+    // (By budget: on the Cornell box every tolerance from 0.1 down runs into the budget, so the
+    // budget is what draws the curve.)
+    vary(plan, b, {"radiosity"}, "adaptive", quick ? Ints{800} : Ints{1000, 2000, 4000, 8000},
+         [](Setting& s, int v) { s.patches = 250, s.refine = 0.02, s.refineBudget = v; });
+    if (!scene.hasSpecular())
+        vary(plan, b, {"radiosity"}, "hierarchical", quick ? Ints{1000} : Ints{1000, 4000, 16000, 64000, 256000},
+             [](Setting& s, int v) { s.patches = v, s.solver = "hierarchical"; });
     if (!scene.hasSpecular())   // no specular transport to trade: every run shares the solves
         for (Setting& s : plan) s.specularRays = b.specularRays;
     vary(plan, b, {"path"}, "spp", quick ? Ints{4, 16, 64} : Ints{4, 16, 64, 256, 1024, 2048}, [](Setting& s, int v) { s.spp = v; });
@@ -149,8 +160,8 @@ struct SolveRecord {
     std::vector<Rgb> B, display;
     std::vector<std::array<Rgb, 4>> corners;
     std::shared_ptr<RayScene> rays;
-    double meshing = 0, formFactors = 0, specular = 0, solve = 0, peakMiB = 0, matrixMiB = 0;
-    uint64_t rayCount = 0, formFactorRays = 0;
+    double meshing = 0, formFactors = 0, specular = 0, solve = 0, peakMiB = 0, matrixMiB = 0, storageMiB = 0;
+    uint64_t rayCount = 0, formFactorRays = 0, links = 0;
     std::vector<Rgb> objectMean;   // area-weighted mean B per object
 };
 
@@ -214,7 +225,7 @@ private:
     Baseline baseline_;
     LogLevel userLevel_;
     std::vector<Setting> plan_;
-    std::map<std::tuple<int, int, double, int, double>, std::unique_ptr<SolveRecord>> solves_;
+    std::map<std::tuple<int, int, double, int, double, double, int, std::string>, std::unique_ptr<SolveRecord>> solves_;
     PatchSet pathPatches_;
     std::unique_ptr<SceneTracer> pathTracer_;
     double pathSetupSeconds_ = 0;
@@ -260,13 +271,13 @@ const Image& Bench::reference(BenchResult& result) {
 }
 
 const SolveRecord& Bench::solveFor(const Setting& s) {
-    const auto key = std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.specularRays, s.tolerance);
+    const auto key = std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.specularRays, s.tolerance, s.refine, s.refineBudget, s.solver);
     if (auto it = solves_.find(key); it != solves_.end()) return *it->second;
     // Every tolerance the plan asks of this mesh comes from one matrix: only the solve differs.
     std::vector<double> tolerances{s.tolerance};
     for (const Setting& p : plan_)
         if (p.method != "path" && p.patches == s.patches && p.visibilityRays == s.visibilityRays && p.ffTolerance == s.ffTolerance &&
-            p.specularRays == s.specularRays &&
+            p.specularRays == s.specularRays && p.refine == s.refine && p.refineBudget == s.refineBudget && p.solver == s.solver && s.solver != "hierarchical" &&
             std::find(tolerances.begin(), tolerances.end(), p.tolerance) == tolerances.end())
             tolerances.push_back(p.tolerance);
     SolveOptions o;
@@ -276,6 +287,9 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
     o.formFactors.seed = options_.seed;
     o.specular.raysPerPatch = s.specularRays;
     o.solverSettings.tolerance = tolerances.front();
+    o.solver = s.solver;
+    o.refine.tolerance = s.refine;
+    if (s.refine > 0) o.refine.maxPatches = s.refineBudget;
     const uint64_t rays0 = raysCast();
     resetPeakMemory();
     SolveResult r = quietly([&] { return solveScene(scene_, o); });
@@ -294,15 +308,18 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
         rec->meshing = r.secondsMeshing, rec->formFactors = r.secondsFormFactors, rec->specular = r.secondsSpecular;
         rec->solve = solveSeconds + vertexSeconds;   // the display's vertex radiosity counts with the solve
         rec->peakMiB = peak;
-        rec->matrixMiB = double(formFactorMatrixBytes(r.patches.size())) / (1 << 20);
+        rec->matrixMiB = double(formFactorMatrixBytes(r.F.size())) / (1 << 20);
+        rec->links = r.hierarchy.links;
+        rec->storageMiB = r.solverName == "hierarchical" ? r.hierarchy.bytes / (1 << 20) : rec->matrixMiB;
         rec->rayCount = rays;
         rec->formFactorRays = r.F.stats.rays;
         rec->objectMean = objectMeans(scene_, rec->patches, rec->B);
-        solves_[std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.specularRays, tolerance)] = std::move(rec);
+        solves_[std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.specularRays, tolerance, s.refine, s.refineBudget, s.solver)] =
+            std::move(rec);
     };
     keep(tolerances.front(), r.solution, r.secondsSolve);
-    const auto solver = makeSolver(r.solverName);
     for (size_t k = 1; k < tolerances.size(); ++k) {
+        const auto solver = makeSolver(r.solverName);
         SolverSettings settings = o.solverSettings;
         settings.tolerance = tolerances[k];
         Timer timer;
@@ -332,6 +349,8 @@ Row Bench::runOne(const Setting& s) {
         row.patchesMade = int(rec.patches.size());
         row.meshing = rec.meshing, row.formFactors = rec.formFactors, row.specular = rec.specular, row.solve = rec.solve;
         row.matrixMiB = rec.matrixMiB;
+        row.links = rec.links;
+        row.storageMiB = rec.storageMiB;
         const uint64_t rays0 = raysCast();
         resetPeakMemory();
         if (s.method == "radiosity") {
@@ -432,6 +451,13 @@ BenchResult Bench::run() {
     result.width = cam.width, result.height = cam.height;
     result.referenceSpp = options_.referenceSpp > 0 ? options_.referenceSpp : options_.quick ? 1024 : 4096;
     plan_ = planRuns(scene_, options_.quick, baseline_);
+    if (!options_.only.empty()) {
+        const auto& only = options_.only;
+        plan_.erase(std::remove_if(plan_.begin(), plan_.end(), [&](const Setting& s) {
+                        const std::string name = s.method == "path" ? "path" : s.sweep;
+                        return name != "default" && std::find(only.begin(), only.end(), name) == only.end();
+                    }), plan_.end());
+    }
     logInfo("bench: ", scene_.path, " at ", cam.width, "x", cam.height, ", ", plan_.size(), " runs on ", result.machine);
 
     Timer setup;
@@ -461,7 +487,7 @@ BenchResult Bench::run() {
     // Radiosity per object against the finest solve of the sweep (whose own rows have none).
     const SolveRecord* finest = nullptr;
     for (const auto& [key, rec] : solves_)
-        if (!finest || rec->patches.size() > finest->patches.size()) finest = rec.get();
+        if (rec->links == 0 && (!finest || rec->patches.size() > finest->patches.size())) finest = rec.get();   // a matrix solve
     for (size_t k = 0; k < result.rows.size(); ++k) {
         if (!records[k] || !finest || records[k]->patches.size() == finest->patches.size()) continue;
         const auto [worst, mean] = objectErrors(scene_, records[k]->patches, records[k]->objectMean, finest->objectMean);

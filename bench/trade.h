@@ -23,6 +23,7 @@ struct BenchOptions {
     int width = 0, height = 0;   // 0: 256 pixels wide (quick: 64), the camera's aspect
     int referenceSpp = 0;    // 0: 4096 (quick: 1024)
     uint64_t seed = 1;
+    std::vector<std::string> only;   // non-empty: just these sweeps (and the defaults), e.g. patches,adaptive,hierarchical
 };
 
 // One setting of the sweep. `method`: "final-gather" (radiosity + final gather), "radiosity" (the
@@ -35,6 +36,9 @@ struct Setting {
     int specularRays = 0;     // rays per patch through mirrors and glass in the solve
     int64_t photons = 0;
     int photonK = 0, gatherRays = 0, spp = 0;
+    double refine = 0;              // > 0: adaptive subdivision from `patches` to this tolerance
+    int refineBudget = 0;           // and at most this many patches
+    std::string solver = "gauss-seidel";   // or "hierarchical" (then `patches` sets the finest elements)
 };
 
 // What one run cost and how close it came. Seconds are wall seconds of producing the image from
@@ -47,6 +51,8 @@ struct Row {
     double solveTotal() const { return meshing + formFactors + specular + solve; }
     double peakMiB = 0;          // peak resident memory during the run's own stages
     double matrixMiB = 0;
+    uint64_t links = 0;          // hierarchical: links kept
+    double storageMiB = 0;       // what the solve's light transport is stored in: matrix, or elements and links
     uint64_t rays = 0;           // rays cast by the run's stages (solve + render)
     uint64_t renderRays = 0;     // of those, the final gather's render alone (photons not counted)
     double imageError = 0;       // mean relative error after a 5x5 box blur, against the reference

@@ -119,4 +119,37 @@ inline std::string furnaceCube(double rho, const std::string& spec = "", bool sp
     return cubeScene(spec.empty() ? m : cat(m, R"(, "spec": )", spec), specTop ? "spec" : "m", extra, tail);
 }
 
+// Form factor from a point, facing up at the origin, to the parallel rectangle [x0,x1] x [y0,y1] at
+// height h facing down (Howell's case B-3 summed over the four corner rectangles).
+inline double pointToRectangle(double x0, double x1, double y0, double y1, double h) {
+    auto corner = [h](double a, double b) {
+        const double ra = std::sqrt(a * a + h * h), rb = std::sqrt(b * b + h * h);
+        return (a / ra * std::atan(b / ra) + b / rb * std::atan(a / rb)) / (2 * kPi);
+    };
+    return corner(x1, y1) - corner(x0, y1) - corner(x1, y0) + corner(x0, y0);
+}
+
+// A 2 m floor (reflectance 0.5) under a 0.2 m lamp at 1 m (L_e = 10, black), with, optionally, a
+// black 0.4 m square halfway between them casting a shadow whose penumbra runs from 0.3 to 0.5 m off
+// the axis (by similar triangles through the square's edges).
+inline std::string lampOverFloor(bool occluder) {
+    return std::string(R"({
+      "materials": {"lamp": {"type": "diffuse", "reflectance": 0, "emission": 10},
+                    "floor": {"type": "diffuse", "reflectance": 0.5},
+                    "black": {"type": "diffuse", "reflectance": 0}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "floor", "vertices": [[-1,-1,0],[1,-1,0],[1,1,0],[-1,1,0]]},
+        {"name": "lamp", "type": "quad", "material": "lamp",
+         "vertices": [[-0.1,-0.1,1],[-0.1,0.1,1],[0.1,0.1,1],[0.1,-0.1,1]]})") +
+           (occluder ? R"(,
+        {"name": "square", "type": "quad", "material": "black",
+         "vertices": [[-0.2,-0.2,0.5],[0.2,-0.2,0.5],[0.2,0.2,0.5],[-0.2,0.2,0.5]]})" : "") +
+           "]}";
+}
+
+// The floor's exact radiosity under that lamp where all of it is in view: rho E F(x -> lamp).
+inline double unshadowedFloor(const Vec3& x) {
+    return 0.5 * kPi * 10 * pointToRectangle(-0.1 - x.x(), 0.1 - x.x(), -0.1 - x.y(), 0.1 - x.y(), 1);
+}
+
 }  // namespace penumbra::test

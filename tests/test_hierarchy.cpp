@@ -59,31 +59,14 @@ TEST(Hierarchy, LinksGrowAboutLinearlyWithTheElements) {
     EXPECT_LT(fine.hierarchy.bytes, 0.5 * double(formFactorMatrixBytes(size_t(nf))));
 }
 
-// The lamp over a floor with a black square between (as in test_adaptive.cpp): penumbra 0.3 to
-// 0.5 m off the axis.
-const char* kShadowScene = R"({
-  "materials": {"lamp": {"type": "diffuse", "reflectance": 0, "emission": 10},
-                "floor": {"type": "diffuse", "reflectance": 0.5},
-                "black": {"type": "diffuse", "reflectance": 0}},
-  "objects": [
-    {"name": "floor", "type": "quad", "material": "floor", "vertices": [[-1,-1,0],[1,-1,0],[1,1,0],[-1,1,0]]},
-    {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[-0.1,-0.1,1],[-0.1,0.1,1],[0.1,0.1,1],[0.1,-0.1,1]]},
-    {"name": "square", "type": "quad", "material": "black", "vertices": [[-0.2,-0.2,0.5],[0.2,-0.2,0.5],[0.2,0.2,0.5],[-0.2,0.2,0.5]]}]})";
-
-double pointToRectangle(double x0, double x1, double y0, double y1, double h) {
-    auto corner = [h](double a, double b) {
-        const double ra = std::sqrt(a * a + h * h), rb = std::sqrt(b * b + h * h);
-        return (a / ra * std::atan(b / ra) + b / rb * std::atan(a / rb)) / (2 * kPi);
-    };
-    return corner(x1, y1) - corner(x0, y1) - corner(x1, y0) + corner(x0, y0);
-}
+using test::pointToRectangle;
 
 TEST(Hierarchy, RefinesAlongThePenumbraAndMeetsTheClosedFormAwayFromIt) {
     SolveOptions o;
     o.solver = "hierarchical";
     o.meshing.targetPatches = 200000;   // the finest elements allowed: far below what the light needs
     o.hierarchyRoots = 16;
-    const SolveResult r = solveScene(test::sceneFromJson(kShadowScene), o);
+    const SolveResult r = solveScene(test::sceneFromJson(test::lampOverFloor(true)), o);
     // Roots of 0.5 m: the floor's outer twelve (off the axis by more than 0.5 m) lie wholly
     // outside the penumbra, and every link landing there stays there, so push-pull keeps the power
     // they receive: it must be the closed form's, integrated over them (a fine midpoint rule).
@@ -113,9 +96,7 @@ TEST(Hierarchy, RefinesAlongThePenumbraAndMeetsTheClosedFormAwayFromIt) {
     EXPECT_LT(bandArea / band, farArea / far) << band << " leaves in the penumbra, " << far << " far off";
     EXPECT_GT(r.hierarchy.partlyVisibleLinks, 0u);
     // The same floor without the square: what the band gets without partial visibility.
-    std::string open = kShadowScene;
-    open = open.substr(0, open.find(",\n    {\"name\": \"square\"")) + "]}";
-    const SolveResult unshadowed = solveScene(test::sceneFromJson(open, "open.json"), o);
+    const SolveResult unshadowed = solveScene(test::sceneFromJson(test::lampOverFloor(false), "open.json"), o);
     double openArea = 0;
     int openBand = 0;
     for (size_t i = 0; i < unshadowed.patches.size(); ++i) {

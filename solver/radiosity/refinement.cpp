@@ -39,6 +39,10 @@ SplitChoice chooseSplits(const PatchSet& p, const RadiositySystem& s, const Form
     for (size_t i = 0; i < n; ++i)
         if (!s.specular[i] && s.emission[i].maxCoeff() <= 0) weighted += s.area[i] * brightness(B[i]), area += s.area[i];
     const double floor = 0.1 * (area > 0 ? weighted / area : 0) + 1e-300;
+    Rgb channelFloor = Rgb::Zero();
+    for (size_t i = 0; i < n; ++i)
+        if (!s.specular[i] && s.emission[i].maxCoeff() <= 0) channelFloor += s.area[i] * B[i];
+    channelFloor = 0.1 * channelFloor / std::max(area, 1e-300) + 1e-300;
     // The brightest emitters (at most 16) stand for the light whose shadows are looked for.
     std::vector<int> emitters;
     for (size_t i = 0; i < n; ++i)
@@ -72,8 +76,9 @@ SplitChoice chooseSplits(const PatchSet& p, const RadiositySystem& s, const Form
                 const int nc = p.cornerCount[i];
                 const Rgb shown = k == 0 ? mean
                                          : Rgb(0.45 * (corners[i][size_t(k - 1)] + corners[i][size_t(k % nc)]) + 0.1 * mean);
-                gradient[i] = std::max(gradient[i], std::abs(brightness(shown) - brightness(solved)) /
-                                                        std::max(brightness(solved), floor));
+                // Per channel: colour bled from a red wall is an error the mean of the channels hides.
+                for (int c = 0; c < 3; ++c)
+                    gradient[i] = std::max(gradient[i], std::abs(shown[c] - solved[c]) / std::max(solved[c], channelFloor[c]));
             }
             Vec3 mine[5], theirs[5];
             const int m = samplePoints(p, i, mine);
