@@ -279,9 +279,7 @@ PatchSet meshScene(const Scene& scene, const MeshingOptions& options) {
 
 CornerValues interpolateCorners(const PatchSet& p, const std::vector<Rgb>& value, double creaseDeg) {
     // Patches around each vertex (vertices are per object, so nothing crosses objects).
-    std::vector<std::vector<int>> around(p.vertices.size());
-    for (size_t i = 0; i < p.size(); ++i)
-        for (int k = 0; k < p.cornerCount[i]; ++k) around[size_t(p.cornerVertex[i][size_t(k)])].push_back(int(i));
+    const auto around = patchesAround(p);
     const double cosCrease = std::cos(creaseDeg * kPi / 180);
     std::vector<std::array<Rgb, 4>> out(p.size());
     for (size_t i = 0; i < p.size(); ++i) {
@@ -296,7 +294,7 @@ CornerValues interpolateCorners(const PatchSet& p, const std::vector<Rgb>& value
             out[i][size_t(k)] = weight > 0 ? Rgb(sum / weight) : value[i];
         }
     }
-    joinHangingVertices(p, out, creaseDeg);
+    joinHangingVertices(p, around, out, creaseDeg);
     return out;
 }
 

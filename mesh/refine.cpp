@@ -37,13 +37,6 @@ VertexIndex indexVertices(const PatchSet& p) {
     return index;
 }
 
-std::vector<std::vector<int>> patchesAround(const PatchSet& p) {
-    std::vector<std::vector<int>> around(p.vertices.size());
-    for (size_t i = 0; i < p.size(); ++i)
-        for (int k = 0; k < p.cornerCount[i]; ++k) around[size_t(p.cornerVertex[i][size_t(k)])].push_back(int(i));
-    return around;
-}
-
 bool hasCorner(const PatchSet& p, size_t i, int vertex) {
     for (int k = 0; k < p.cornerCount[i]; ++k)
         if (p.cornerVertex[i][size_t(k)] == vertex) return true;
@@ -51,6 +44,13 @@ bool hasCorner(const PatchSet& p, size_t i, int vertex) {
 }
 
 }  // namespace
+
+std::vector<std::vector<int>> patchesAround(const PatchSet& p) {
+    std::vector<std::vector<int>> around(p.vertices.size());
+    for (size_t i = 0; i < p.size(); ++i)
+        for (int k = 0; k < p.cornerCount[i]; ++k) around[size_t(p.cornerVertex[i][size_t(k)])].push_back(int(i));
+    return around;
+}
 
 std::vector<HangingVertex> hangingVertices(const PatchSet& p) {
     const VertexIndex index = indexVertices(p);
@@ -70,8 +70,8 @@ std::vector<HangingVertex> hangingVertices(const PatchSet& p) {
     return out;
 }
 
-void joinHangingVertices(const PatchSet& p, CornerValues& out, double creaseDeg) {
-    const auto around = patchesAround(p);
+void joinHangingVertices(const PatchSet& p, const std::vector<std::vector<int>>& around, CornerValues& out,
+                         double creaseDeg) {
     const double cosCrease = std::cos(creaseDeg * kPi / 180);
     for (const HangingVertex& h : hangingVertices(p)) {
         const size_t coarse = size_t(h.patch);
@@ -81,25 +81,6 @@ void joinHangingVertices(const PatchSet& p, CornerValues& out, double creaseDeg)
                 for (int k = 0; k < 4; ++k)
                     if (p.cornerVertex[size_t(j)][size_t(k)] == h.vertex) out[size_t(j)][size_t(k)] = mean;
     }
-}
-
-std::vector<std::vector<int>> patchNeighbours(const PatchSet& p) {
-    const auto around = patchesAround(p);
-    std::vector<std::vector<int>> out(p.size());
-    for (size_t i = 0; i < p.size(); ++i)
-        for (int k = 0; k < p.cornerCount[i]; ++k)
-            for (int j : around[size_t(p.cornerVertex[i][size_t(k)])])
-                if (j != int(i)) out[i].push_back(j);
-    for (const HangingVertex& h : hangingVertices(p))
-        for (int j : around[size_t(h.vertex)]) {
-            out[size_t(h.patch)].push_back(j);
-            out[size_t(j)].push_back(h.patch);
-        }
-    for (auto& list : out) {
-        std::sort(list.begin(), list.end());
-        list.erase(std::unique(list.begin(), list.end()), list.end());
-    }
-    return out;
 }
 
 PatchSet shareVertices(const PatchSet& p) {

@@ -24,13 +24,14 @@ struct HangingVertex {
 // All hanging vertices of the patch set, longest edge first.
 std::vector<HangingVertex> hangingVertices(const PatchSet& patches);
 
+// Per display vertex, the patches that have it as a corner.
+std::vector<std::vector<int>> patchesAround(const PatchSet& patches);
+
 // Gives every hanging vertex the mean of its coarser edge's end values, as the coarser patch's own
 // interpolation has along that edge: the displayed shading stays continuous across the join.
-void joinHangingVertices(const PatchSet& patches, CornerValues& corners, double creaseDeg = 30);
-
-// Per patch, the patches of the same object that touch it: sharing a vertex, or holding a vertex
-// that hangs on one of its edges.
-std::vector<std::vector<int>> patchNeighbours(const PatchSet& patches);
+// `around` is patchesAround(patches).
+void joinHangingVertices(const PatchSet& patches, const std::vector<std::vector<int>>& around, CornerValues& corners,
+                         double creaseDeg = 30);
 
 // The four children of patch i, in its own plane (or bilinear surface) and winding: a quad's at the
 // midpoints of its edges and its parametric centre, a triangle's at its edge midpoints (the middle

@@ -9,9 +9,7 @@ namespace penumbra {
 CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const FormFactorMatrix& F, const std::vector<Rgb>& B,
                            const RayScene& rays, double creaseDeg) {
     const size_t n = p.size();
-    std::vector<std::vector<int>> around(p.vertices.size());
-    for (size_t i = 0; i < n; ++i)
-        for (int k = 0; k < p.cornerCount[i]; ++k) around[size_t(p.cornerVertex[i][size_t(k)])].push_back(int(i));
+    const auto around = patchesAround(p);
     const double cosCrease = std::cos(creaseDeg * kPi / 180);
     // Per (patch, corner): the equation at the vertex, lifted off the patch and pulled a hair into it.
     CornerValues own(n);
@@ -65,7 +63,7 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
                         }
             out[i][size_t(k)] = weight > 0 ? Rgb(sum / weight) : own[i][size_t(k)];
         }
-    joinHangingVertices(p, out, creaseDeg);
+    joinHangingVertices(p, around, out, creaseDeg);
     return out;
 }
 
