@@ -78,37 +78,24 @@ Rgb FinalGather::indirectIrradiance(const SurfaceHit& x, Rng& rng, int rays, int
     const Vec3 from = x.point + tracer_.epsilon() * x.normal;
     Rgb sum = Rgb::Zero();
     for (int r = 0; r < rays; ++r) {
-        Vec3 o = from, d = cosineDirection(x.normal, rng);
-        Rgb throughput = Rgb::Ones();
-        double length = 0;
-        for (int depth = 0; depth <= settings_.maxSpecularDepth; ++depth) {
-            const SurfaceHit y = tracer_.trace(o, d);
-            if (!y.found) break;
-            length += y.t;
-            if (y.material->type == MaterialType::Diffuse) {
-                if (!y.frontFacing(d)) break;
-                if (depth == 0 && y.material->emits()) {
-                    // Direct light found by a gather ray: its share of the MIS combination.
-                    const double cosX = x.normal.dot(d), cosL = -y.normal.dot(d);
-                    const double lightPdf = tracer_.emitterPdfArea(y.patch) * y.t * y.t / cosL;
-                    sum += y.material->emission * misWeight(rays, cosX * kInvPi, lightSamples, lightPdf);
-                }
-                if (level == 0 && length < settings_.closeFactor * tracer_.patches().radius[size_t(y.patch)]) {
-                    // Too close for patch-level radiosity: shade the landing point itself.
-                    sum += throughput * reflected(y, rng, level + 1);
-                } else {
-                    const Rgb B = radiosityAt(y) - kPi * y.material->emission;
-                    sum += throughput * B.max(0.0) * kInvPi;
-                }
-                break;
-            }
-            // Through mirrors and glass, one branch at a time in proportion to its share.
-            const std::optional<SpecularBranch> b = sampleSpecular(y, d, rng);
-            if (!b) break;
-            throughput *= b->weight;
-            if (throughput.maxCoeff() < settings_.minThroughput) break;
-            d = b->dir;
-            o = tracer_.offset(y, d);
+        const Vec3 d = cosineDirection(x.normal, rng);
+        // Through mirrors and glass, one branch at a time in proportion to its share.
+        const SpecularWalk w =
+            walkSpecular(tracer_, tracer_.trace(from, d), d, rng, settings_.maxSpecularDepth, settings_.minThroughput);
+        if (w.end != WalkEnd::Diffuse || !w.hit.frontFacing(w.dir)) continue;
+        const SurfaceHit& y = w.hit;
+        if (w.bounces == 0 && y.material->emits()) {
+            // Direct light found by a gather ray: its share of the MIS combination.
+            const double cosX = x.normal.dot(d), cosL = -y.normal.dot(d);
+            const double lightPdf = tracer_.emitterPdfArea(y.patch) * y.t * y.t / cosL;
+            sum += y.material->emission * misWeight(rays, cosX * kInvPi, lightSamples, lightPdf);
+        }
+        if (level == 0 && w.length < settings_.closeFactor * tracer_.patches().radius[size_t(y.patch)]) {
+            // Too close for patch-level radiosity: shade the landing point itself.
+            sum += w.throughput * reflected(y, rng, level + 1);
+        } else {
+            const Rgb B = radiosityAt(y) - kPi * y.material->emission;
+            sum += w.throughput * B.max(0.0) * kInvPi;
         }
     }
     // Cosine sampling: E = pi * mean(L_in).

@@ -37,12 +37,14 @@ ImageError compareImages(const Image& a, const Image& ref) {
         aSum += a.rgb[k];
     }
     const double floor = 0.01 * refSum / double(n) + 1e-30;
-    double rel = 0, sq = 0;
+    double rel = 0, sq = 0, l1 = 0;
     for (size_t k = 0; k < n; ++k) {
         const double d = double(a.rgb[k]) - double(ref.rgb[k]);
         rel += std::abs(d) / (std::max(0.0, double(ref.rgb[k])) + floor);
+        l1 += std::abs(d);
         sq += d * d;
     }
+    e.pooledL1 = refSum > 0 ? l1 / refSum : (l1 > 0 ? HUGE_VAL : 0);
     e.meanRelative = rel / double(n);
     e.rmse = std::sqrt(sq / double(n));
     e.meanRatio = refSum > 0 ? aSum / refSum : 0;

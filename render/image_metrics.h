@@ -1,5 +1,6 @@
-// Image comparisons used by the tests, `penumbra compare` and the bench. The error measures of the
-// issues: mean relative error after a 5x5 box blur, and RMSE.
+// Image comparisons used by the tests, `penumbra compare` and the bench. The project's measure is
+// the pooled L1 after a 5x5 box blur, sum |blur(a) - blur(ref)| / sum blur(ref) over all pixels and
+// channels; beside it the mean per-pixel relative error (labelled as such) and the RMSE.
 #pragma once
 
 #include "render/image.h"
@@ -10,7 +11,8 @@ namespace penumbra {
 Image boxBlur(const Image& image, int radius);
 
 struct ImageError {
-    double meanRelative = 0;   // mean over pixels and channels of |a - ref| / (ref + floor)
+    double pooledL1 = 0;       // sum over pixels and channels of |a - ref|, over the sum of ref
+    double meanRelative = 0;   // per-pixel relative error: mean over pixels and channels of |a - ref| / (ref + floor)
     double rmse = 0;           // root mean square of a - ref, W sr^-1 m^-2
     double meanRatio = 0;      // sum(a) / sum(ref): the overall brightness ratio
 };

@@ -16,49 +16,50 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
     bool specular = true;    // the last bounce was the camera or a mirror/glass: emission counts fully
     double bsdfPdf = 0;      // solid-angle pdf of the last diffuse bounce, for MIS on emitters
     for (int depth = 0; depth < settings.maxDepth; ++depth) {
-        const SurfaceHit hit = tracer.trace(o, d);
+        SurfaceHit hit = tracer.trace(o, d);
+        if (hit.found && hit.material->type != MaterialType::Diffuse) {
+            // Through mirrors and glass to the next diffuse surface; each bounce counts as a depth.
+            const SpecularWalk w = walkSpecular(tracer, std::move(hit), d, rng, settings.maxDepth - depth - 1);
+            throughput *= w.throughput;
+            depth += w.bounces;
+            specular = true;
+            if (w.end != WalkEnd::Diffuse) break;
+            hit = w.hit;
+            d = w.dir;
+        }
         if (!hit.found) break;
         const Material& m = *hit.material;
-        if (m.type != MaterialType::Diffuse) {
-            const std::optional<SpecularBranch> b = sampleSpecular(hit, d, rng);
-            if (!b) break;
-            throughput *= b->weight;
-            d = b->dir;
-            o = tracer.offset(hit, d);
-            specular = true;
-        } else {
-            if (!hit.frontFacing(d)) break;   // back faces are black
-            if (m.emits()) {
-                if (specular) {
-                    L += throughput * m.emission;
-                } else {
-                    const double cosL = -hit.normal.dot(d);
-                    const double lightPdf = tracer.emitterPdfArea(hit.patch) * hit.t * hit.t / cosL;
-                    L += throughput * m.emission * powerHeuristic(bsdfPdf, lightPdf);
-                }
+        if (!hit.frontFacing(d)) break;   // back faces are black
+        if (m.emits()) {
+            if (specular) {
+                L += throughput * m.emission;
+            } else {
+                const double cosL = -hit.normal.dot(d);
+                const double lightPdf = tracer.emitterPdfArea(hit.patch) * hit.t * hit.t / cosL;
+                L += throughput * m.emission * powerHeuristic(bsdfPdf, lightPdf);
             }
-            if ((m.reflectance <= 0).all()) break;
-            const Vec3 x = tracer.offset(hit, -d);
-            // Next-event estimation: one point on the emitters.
-            if (tracer.hasEmitters()) {
-                const EmitterSample e = tracer.sampleEmitter(rng);
-                Vec3 w = e.point - hit.point;
-                const double d2 = w.squaredNorm();
-                w /= std::sqrt(d2);
-                const double cosX = hit.normal.dot(w), cosL = -e.normal.dot(w);
-                if (cosX > 0 && cosL > 0 && tracer.visible(x, e.point + tracer.epsilon() * e.normal)) {
-                    const double lightPdf = e.pdfArea * d2 / cosL;
-                    L += throughput * m.reflectance * kInvPi * e.radiance * (cosX / lightPdf) *
-                         powerHeuristic(lightPdf, cosX * kInvPi);
-                }
-            }
-            // Cosine-sampled bounce: f cos / pdf = rho.
-            d = cosineDirection(hit.normal, rng);
-            bsdfPdf = hit.normal.dot(d) * kInvPi;
-            o = x;
-            throughput *= m.reflectance;
-            specular = false;
         }
+        if ((m.reflectance <= 0).all()) break;
+        const Vec3 x = tracer.offset(hit, -d);
+        // Next-event estimation: one point on the emitters.
+        if (tracer.hasEmitters()) {
+            const EmitterSample e = tracer.sampleEmitter(rng);
+            Vec3 w = e.point - hit.point;
+            const double d2 = w.squaredNorm();
+            w /= std::sqrt(d2);
+            const double cosX = hit.normal.dot(w), cosL = -e.normal.dot(w);
+            if (cosX > 0 && cosL > 0 && tracer.visible(x, e.point + tracer.epsilon() * e.normal)) {
+                const double lightPdf = e.pdfArea * d2 / cosL;
+                L += throughput * m.reflectance * kInvPi * e.radiance * (cosX / lightPdf) *
+                     powerHeuristic(lightPdf, cosX * kInvPi);
+            }
+        }
+        // Cosine-sampled bounce: f cos / pdf = rho.
+        d = cosineDirection(hit.normal, rng);
+        bsdfPdf = hit.normal.dot(d) * kInvPi;
+        o = x;
+        throughput *= m.reflectance;
+        specular = false;
         if (depth + 1 >= settings.rouletteDepth) {
             const double q = std::min(0.95, throughput.maxCoeff());
             if (q <= 0 || rng.uniform() >= q) break;

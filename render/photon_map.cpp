@@ -64,25 +64,12 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
                 // Cosine-distributed emission: the power is pi L_e / (pdf_area N).
                 Rgb power = kPi * e.radiance / (e.pdfArea * double(n));
                 emitted[size_t(c)] += power;
-                Vec3 d = cosineDirection(e.normal, rng);
-                Vec3 o = e.point + tracer.epsilon() * e.normal;
-                bool specular = false;
-                for (int depth = 0; depth < settings.maxDepth; ++depth) {
-                    const SurfaceHit hit = tracer.trace(o, d);
-                    if (!hit.found) break;
-                    if (hit.material->type == MaterialType::Diffuse) {
-                        if (specular && hit.frontFacing(d))
-                            stored[size_t(c)].push_back({hit.point.cast<float>(), hit.normal.cast<float>(),
-                                                         power.matrix().cast<float>()});
-                        break;
-                    }
-                    const std::optional<SpecularBranch> b = sampleSpecular(hit, d, rng);
-                    if (!b) break;
-                    power *= b->weight;
-                    d = b->dir;
-                    o = tracer.offset(hit, d);
-                    specular = true;
-                }
+                const Vec3 d = cosineDirection(e.normal, rng);
+                const SpecularWalk w =
+                    walkSpecular(tracer, tracer.trace(e.point + tracer.epsilon() * e.normal, d), d, rng, settings.maxDepth);
+                if (w.end == WalkEnd::Diffuse && w.bounces > 0 && w.hit.frontFacing(w.dir))
+                    stored[size_t(c)].push_back({w.hit.point.cast<float>(), w.hit.normal.cast<float>(),
+                                                 Rgb(power * w.throughput).matrix().cast<float>()});
             }
             progress.update();
         }
@@ -105,7 +92,9 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
             for (int64_t k = b; k < e; ++k) {
                 const Photon& p = impl_->cloud.points[size_t(k) * stride];
                 double radius = 0;
-                const Rgb E = estimate(p.position.cast<double>(), p.normal.cast<double>(), &radius);
+                // Leave the photon itself out: an estimate at a photon's own position always counts
+                // that photon at the filter's full weight, which biases it up by about 1.5/k.
+                const Rgb E = estimate(p.position.cast<double>(), p.normal.cast<double>(), &radius, size_t(k) * stride);
                 impl_->precomputed.points[size_t(k)] = {p.position, p.normal, E.matrix().cast<float>(), float(radius * radius)};
             }
         }, 256);
@@ -118,6 +107,14 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
 }
 
 PhotonMap::~PhotonMap() = default;
+
+std::vector<PhotonMap::Stored> PhotonMap::storedPhotons() const {
+    std::vector<Stored> out;
+    out.reserve(impl_->cloud.points.size());
+    for (const Photon& p : impl_->cloud.points)
+        out.push_back({p.position.cast<double>(), p.normal.cast<double>(), p.power.cast<double>().array()});
+    return out;
+}
 
 Rgb PhotonMap::irradiance(const Vec3& x, const Vec3& n) const {
     if (!impl_->precomputedTree) return estimate(x, n);
@@ -146,7 +143,7 @@ Rgb PhotonMap::irradiance(const Vec3& x, const Vec3& n) const {
     return Rgb::Zero();
 }
 
-Rgb PhotonMap::estimate(const Vec3& x, const Vec3& n, double* radius) const {
+Rgb PhotonMap::estimate(const Vec3& x, const Vec3& n, double* radius, size_t exclude) const {
     if (radius) *radius = 0;
     if (impl_->cloud.points.empty()) return Rgb::Zero();
     const size_t k = size_t(nearest_);
@@ -173,6 +170,7 @@ Rgb PhotonMap::estimate(const Vec3& x, const Vec3& n, double* radius) const {
     const Eigen::Vector3f nf = n.cast<float>();
     for (size_t i = 0; i < found; ++i) {
         if (dist2[i] > r2) break;
+        if (index[i] == exclude) continue;
         const Photon& p = impl_->cloud.points[index[i]];
         if (p.normal.dot(nf) < 0.9f) continue;
         const double w = 1 - std::sqrt(double(dist2[i])) / (kCone * r);

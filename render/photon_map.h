@@ -18,7 +18,7 @@ namespace penumbra {
 
 struct PhotonSettings {
     int64_t photons = 1000000;   // photons emitted
-    int nearest = 100;           // k of the k-nearest density estimate
+    int nearest = 50;            // k of the k-nearest density estimate
     double maxRadius = 0.02;     // largest gather radius, as a fraction of the scene's diagonal
     int maxDepth = 64;           // specular bounces before a photon is dropped
     int precompute = 4;          // precompute the estimate at every this-many stored photons; 0: never
@@ -45,8 +45,15 @@ public:
     // nearest precomputed estimate when there are any.
     Rgb irradiance(const Vec3& x, const Vec3& n) const;
     // The same estimate computed afresh from the k nearest photons; `radius` gets the disc it used.
-    Rgb estimate(const Vec3& x, const Vec3& n, double* radius = nullptr) const;
+    // `exclude`: a stored photon to leave out (the estimate at its own position).
+    Rgb estimate(const Vec3& x, const Vec3& n, double* radius = nullptr, size_t exclude = size_t(-1)) const;
     const PhotonStats& stats() const { return stats_; }
+    // The stored photons, in the order stored (for tests and figures).
+    struct Stored {
+        Vec3 position, normal;
+        Rgb power;   // W
+    };
+    std::vector<Stored> storedPhotons() const;
 
 private:
     struct Impl;

@@ -59,11 +59,16 @@ Vec3 samplePatchPoint(const PatchSet& patches, size_t i, double u1, double u2, d
     const auto& c = patches.corners[i];
     Vec3 a = c[0], b = c[1], d = c[2];
     if (!patches.isTriangle(i)) {
-        const double first = 0.5 * (c[1] - c[0]).cross(c[2] - c[0]).norm();
-        const double second = 0.5 * (c[2] - c[0]).cross(c[3] - c[0]).norm();
+        // The two triangles Embree traces a quad as, (c0, c1, c3) and (c2, c3, c1): on a quad that is
+        // not quite flat (the Cornell box's walls) a point of the other diagonal's triangles lies off
+        // the traced surface, half the time behind it, where its ray meets its own patch's back.
+        const double first = 0.5 * (c[1] - c[0]).cross(c[3] - c[0]).norm();
+        const double second = 0.5 * (c[3] - c[2]).cross(c[1] - c[2]).norm();
+        d = c[3];
         if (u3 * (first + second) >= first) {
-            b = c[2];
-            d = c[3];
+            a = c[2];
+            b = c[3];
+            d = c[1];
         }
     }
     const double r = std::sqrt(u1);

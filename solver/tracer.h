@@ -95,6 +95,70 @@ int specularBranches(const SurfaceHit& hit, const Vec3& dir, SpecularBranch out[
 // divided by it (the factor the path's throughput takes). Empty where the light is absorbed.
 std::optional<SpecularBranch> sampleSpecular(const SurfaceHit& hit, const Vec3& dir, Rng& rng);
 
+// How a walk through mirrors and glass ended.
+enum class WalkEnd {
+    Diffuse,    // on a diffuse surface (front or back face: see `hit`)
+    Escaped,    // out of the scene
+    Absorbed,   // on the back of a mirror
+    TooDeep,    // more bounces than allowed, or too little throughput left
+};
+
+struct SpecularWalk {
+    WalkEnd end = WalkEnd::Escaped;
+    SurfaceHit hit;          // the diffuse surface reached (End::Diffuse), else the last specular hit
+    Vec3 dir = Vec3::Zero(); // the direction that arrived there (or left the scene)
+    Rgb throughput = Rgb::Ones();
+    int bounces = 0;         // specular bounces taken
+    double length = 0;       // metres travelled, from the first hit's ray origin
+};
+
+// The one specular walk every light path uses (the solve's transport, the photons, the gather rays,
+// the path tracer, the tests): from `first`, the surface a ray along `dir` met, on through mirrors and
+// glass one branch at a time (sampleSpecular) until a diffuse surface, the open scene, an absorbing
+// back face, `maxBounces` bounces, or a throughput below `minThroughput`. `onLoss(object, share)`, if
+// given, is told the throughput each mirror or glass tint absorbs. A diffuse `first` returns at once.
+template <typename OnLoss>
+SpecularWalk walkSpecular(const SceneTracer& tracer, SurfaceHit first, Vec3 dir, Rng& rng, int maxBounces,
+                          double minThroughput, const OnLoss& onLoss) {
+    SpecularWalk w;
+    w.hit = std::move(first);
+    w.dir = dir;
+    w.length = w.hit.t;
+    for (;;) {
+        if (!w.hit.found) {
+            w.end = WalkEnd::Escaped;
+            return w;
+        }
+        if (w.hit.material->type == MaterialType::Diffuse) {
+            w.end = WalkEnd::Diffuse;
+            return w;
+        }
+        if (w.bounces >= maxBounces) {
+            w.end = WalkEnd::TooDeep;
+            return w;
+        }
+        const std::optional<SpecularBranch> b = sampleSpecular(w.hit, w.dir, rng);
+        if (!b) {
+            w.end = WalkEnd::Absorbed;
+            return w;
+        }
+        if ((b->weight < 1).any()) onLoss(w.hit.object, Rgb(w.throughput * (1 - b->weight).max(0.0)));
+        w.throughput *= b->weight;
+        ++w.bounces;
+        if (w.throughput.maxCoeff() < minThroughput) {
+            w.end = WalkEnd::TooDeep;
+            return w;
+        }
+        w.dir = b->dir;
+        w.hit = tracer.trace(tracer.offset(w.hit, w.dir), w.dir);
+        w.length += w.hit.t;
+    }
+}
+inline SpecularWalk walkSpecular(const SceneTracer& tracer, SurfaceHit first, const Vec3& dir, Rng& rng,
+                                 int maxBounces, double minThroughput = 0) {
+    return walkSpecular(tracer, std::move(first), dir, rng, maxBounces, minThroughput, [](int, const Rgb&) {});
+}
+
 // A uniformly distributed point on a patch (the two triangles of a quad chosen by area).
 Vec3 samplePatchPoint(const PatchSet& patches, size_t patch, double u1, double u2, double u3);
 

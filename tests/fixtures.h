@@ -15,7 +15,9 @@
 
 #include "core/error.h"
 #include "mesh/scene.h"
+#include "solver/radiosity/escape.h"
 #include "solver/solve.h"
+#include "solver/tracer.h"
 
 namespace penumbra::test {
 
@@ -150,6 +152,31 @@ inline std::string lampOverFloor(bool occluder) {
 // The floor's exact radiosity under that lamp where all of it is in view: rho E F(x -> lamp).
 inline double unshadowedFloor(const Vec3& x) {
     return 0.5 * kPi * 10 * pointToRectangle(-0.1 - x.x(), 0.1 - x.x(), -0.1 - x.y(), 0.1 - x.y(), 1);
+}
+
+// The power balance with its two sides computed independently: emitted (the closed form of the
+// emitters) = absorbed (the solve's) + escaped, the escaped power counted by rays that leave the
+// scene (estimateEscapedPower), not defined as what the solve did not absorb. Within 4.5 standard
+// errors of the ray count and `bias` of the emitted power, for what the two geometries differ by
+// (cubature error of the form factors, the facets of spheres the rays see exactly). Also holds the
+// solve's own escaped power against the rays'.
+inline void expectBalanceByRays(const Scene& scene, const SolveResult& r, double bias = 2e-3, int rays = 1024,
+                                const std::string& what = "") {
+    const SceneTracer tracer(scene, r.patches);
+    const EscapeEstimate escape = estimateEscapedPower(tracer, r.solution.B, rays, 17);
+    for (int c = 0; c < 3; ++c) {
+        const double emitted = r.power.totalEmitted[c];
+        if (!(emitted > 0)) continue;
+        const double allowed = 4.5 * escape.standardError[c] + bias * emitted;
+        EXPECT_NEAR(r.power.totalAbsorbed[c] + escape.escaped[c], emitted, allowed)
+            << what << " channel " << c << ": absorbed " << r.power.totalAbsorbed[c] << " W, escaped by rays "
+            << escape.escaped[c] << " +- " << escape.standardError[c] << " W";
+        EXPECT_NEAR(r.power.escaped[c], escape.escaped[c], allowed) << what << " channel " << c << ": the solve's escaped power";
+    }
+}
+inline void expectBalanceByRays(const std::string& json, const SolveResult& r, double bias = 2e-3, int rays = 1024,
+                                const std::string& what = "") {
+    expectBalanceByRays(sceneFromJson(json, "balance.json"), r, bias, rays, what);
 }
 
 }  // namespace penumbra::test

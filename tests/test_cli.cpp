@@ -209,8 +209,29 @@ TEST(Cli, GlassSceneRendersWithoutASolutionAndAgainstThePathTracer) {
     ASSERT_EQ(path.status, 0) << path.output;
     EXPECT_EQ(path.output.find("solving"), std::string::npos) << "the path tracer needs no solve: " << path.output;
     const CommandResult compare = run(cat("compare ", out, "/gather.exr ", out, "/path.exr"));
-    EXPECT_EQ(compare.status, 0) << compare.output;
-    EXPECT_NE(compare.output.find("mean relative error"), std::string::npos) << compare.output;
+    ASSERT_EQ(compare.status, 0) << compare.output;
+    // compare's pooled L1 after the 5x5 blur, against the same measure computed here on its own: the
+    // two renders agree to within their noise (4 and 16 samples per pixel at 24 x 24).
+    double printed = -1;
+    ASSERT_EQ(std::sscanf(compare.output.c_str(), "pooled L1 after 5x5 box blur %lf", &printed), 1) << compare.output;
+    const Image a = readLinearImage(out + "/gather.exr"), b = readLinearImage(out + "/path.exr");
+    auto blurred = [](const Image& im, int x, int y, int c) {
+        double sum = 0;
+        int count = 0;
+        for (int yy = std::max(0, y - 2); yy <= std::min(im.height - 1, y + 2); ++yy)
+            for (int xx = std::max(0, x - 2); xx <= std::min(im.width - 1, x + 2); ++xx, ++count)
+                sum += im.rgb[size_t(3 * (yy * im.width + xx) + c)];
+        return sum / count;
+    };
+    double l1 = 0, total = 0;
+    for (int y = 0; y < a.height; ++y)
+        for (int x = 0; x < a.width; ++x)
+            for (int c = 0; c < 3; ++c) {
+                l1 += std::abs(blurred(a, x, y, c) - blurred(b, x, y, c));
+                total += blurred(b, x, y, c);
+            }
+    EXPECT_NEAR(printed, l1 / total, 1e-3) << compare.output;
+    EXPECT_LT(printed, 0.15) << "final gather against the path tracer, 24 x 24, few samples";
     const CommandResult mismatch = run(cat("compare ", out, "/gather.exr ", std::string(PENUMBRA_SOURCE_DIR),
                                            "/docs/images/cornell-radiosity.png"));
     EXPECT_NE(mismatch.status, 0);

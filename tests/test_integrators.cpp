@@ -9,6 +9,7 @@
 #include "core/optics.h"
 #include "core/parallel.h"
 #include "fixtures.h"
+#include "statistics.h"
 #include "render/final_gather.h"
 #include "render/image_metrics.h"
 #include "render/path_tracer.h"
@@ -92,7 +93,13 @@ TEST(GlassSlab, TransmitsWhatFresnelSays) {
     // Normal incidence, all internal reflections summed: T = (1 - R)^2 / (1 - R^2) = (1 - R) / (1 + R).
     for (double ior : {1.5, 2.4}) {
         const double R = fresnelDielectric(1, 1, ior), T = (1 - R) / (1 + R);
-        EXPECT_NEAR(imageMean(pathImage(glassSlab(ior), 256))[0], T, 0.005 * T) << "path, ior " << ior;
+        // Each path sample is 1 (through to the lamp) or 0 (reflected away): a Bernoulli trial of
+        // mean T, so the image mean of N samples has standard deviation sqrt(T (1 - T) / N). z-test,
+        // two-sided at 1e-4 (|z| < 3.9), Sidak-corrected over the two indices.
+        const int spp = 1024, pixels = 64;
+        const double sigma = std::sqrt(T * (1 - T) / (double(spp) * pixels));
+        const double z = (imageMean(pathImage(glassSlab(ior), spp))[0] - T) / sigma;
+        EXPECT_LT(std::abs(z), test::zLimit(test::sidak(1e-4, 2))) << "path, ior " << ior;
         EXPECT_NEAR(imageMean(gatherImage(glassSlab(ior), 100, 4))[0], T, 1e-3 * T) << "final gather, ior " << ior;
     }
 }

@@ -76,34 +76,26 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
             for (int r = 0; r < side * side; ++r) {
                 const double u1 = ((r % side) + rng.uniform()) / side, u2 = ((r / side) + rng.uniform()) / side;
                 const Vec3 p = samplePatchPoint(patches, i, u1, u2, rng.uniform());
-                Vec3 d = cosineDirection(patches.normal[i], rng);
-                SurfaceHit h = tracer.trace(p + tracer.epsilon() * patches.normal[i], d);
+                const Vec3 d = cosineDirection(patches.normal[i], rng);
+                const SurfaceHit h = tracer.trace(p + tracer.epsilon() * patches.normal[i], d);
                 ++row.rays;
                 if (!h.found || h.material->type == MaterialType::Diffuse || !h.frontFacing(d)) continue;
                 const int g = group[size_t(h.object)];
                 ++hits[size_t(g)];
-                Rgb thr = Rgb::Ones();
-                for (int depth = 0;; ++depth) {
-                    const std::optional<SpecularBranch> b =
-                        depth < settings.maxDepth ? sampleSpecular(h, d, rng) : std::nullopt;
-                    if (!b) {
-                        fates.push_back({g, h.object, false, thr});
-                        break;
-                    }
-                    // What the mirror or the glass tint keeps is absorbed there.
-                    if ((b->weight < 1).any()) fates.push_back({g, h.object, false, thr * (1 - b->weight)});
-                    thr *= b->weight;
-                    d = b->dir;
-                    h = tracer.trace(tracer.offset(h, d), d);
-                    ++row.rays;
-                    if (!h.found) break;   // out of the scene: the remainder of the balance
-                    if (h.material->type == MaterialType::Diffuse) {
-                        if (h.frontFacing(d))
-                            fates.push_back({g, h.patch, true, thr});
-                        else
-                            fates.push_back({g, h.object, false, thr});
-                        break;
-                    }
+                // What a mirror or a glass tint keeps is absorbed there.
+                const SpecularWalk w = walkSpecular(tracer, h, d, rng, settings.maxDepth, 0.0,
+                                                    [&](int object, const Rgb& kept) { fates.push_back({g, object, false, kept}); });
+                row.rays += w.bounces;
+                switch (w.end) {
+                case WalkEnd::Escaped: break;   // out of the scene: the remainder of the balance
+                case WalkEnd::Diffuse:
+                    if (w.hit.frontFacing(w.dir))
+                        fates.push_back({g, w.hit.patch, true, w.throughput});
+                    else
+                        fates.push_back({g, w.hit.object, false, w.throughput});
+                    break;
+                case WalkEnd::Absorbed:
+                case WalkEnd::TooDeep: fates.push_back({g, w.hit.object, false, w.throughput}); break;
                 }
             }
             // Each ray that met object g first carries F(i, g) / hits(g) of patch i's light.

@@ -13,6 +13,10 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
     const double cosCrease = std::cos(creaseDeg * kPi / 180);
     // Per (patch, corner): the equation at the vertex, lifted off the patch and pulled a hair into it.
     CornerValues own(n);
+    std::vector<size_t> specularPatches;
+    if (!s.transport.empty())
+        for (size_t j = 0; j < n; ++j)
+            if (s.specular[j]) specularPatches.push_back(j);
     Progress progress("vertex radiosity", int64_t(n));
     parallelFor(int64_t(n), [&](int64_t begin, int64_t end) {
         prepareTracingThread();
@@ -22,6 +26,13 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
             for (int k = 0; k < 4; ++k) own[i][size_t(k)] = s.emission[i];
             progress.update(1);
             if (s.specular[i]) continue;
+            // Light arriving through mirrors and glass is known per patch (the transport's rays land
+            // anywhere on it): a corner takes it in proportion to how much of the mirrors and glass
+            // it sees against the patch as a whole, F(x -> specular) / F(i -> specular).
+            const Rgb viaSpecular = s.transport.incoming(i, B);
+            double patchShare = 0;
+            if (F.size() == n)
+                for (size_t j : specularPatches) patchShare += F(i, j);
             for (int k = 0; k < p.cornerCount[i]; ++k) {
                 const int v = p.cornerVertex[i][size_t(k)];
                 const double lift = 1e-6 + 1e-4 * p.radius[i];
@@ -40,7 +51,16 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
                         return p.normal[j].dot(x - p.centroid[j]) > 0 && p.normal[i].dot(p.centroid[j] - x) > 0;
                     });
                 }
-                own[i][size_t(k)] = s.emission[i] + s.reflectance[i] * h;
+                Rgb specular = Rgb::Zero();
+                if (patchShare > 0) {
+                    double pointShare = 0;
+                    for (size_t j : specularPatches) {
+                        const double f = pointPolygonFormFactor(x, p.normal[i], p.corners[j].data(), p.cornerCount[j]);
+                        if (f > 0 && !rays.occluded(x, p.centroid[j], 1e-3)) pointShare += f;
+                    }
+                    specular = viaSpecular * (pointShare / patchShare);
+                }
+                own[i][size_t(k)] = s.emission[i] + s.reflectance[i] * (h + specular);
             }
             if (p.isTriangle(i)) own[i][3] = own[i][2];
         }

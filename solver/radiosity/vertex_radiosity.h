@@ -1,9 +1,12 @@
 // The displayed radiosity at the patch corners, from the radiosity equation itself: at each vertex,
-// E + rho sum_j F(x->j) B_j with point-to-patch factors (Lambert's contour formula) and one
-// visibility ray per patch. The mean of the patches around a vertex (interpolateCorners) is what a
-// patch holds on average, which at a room's edge or next to a contact is not the light at the vertex;
-// the equation at the vertex is. Costs one point-to-patch factor per vertex and visible patch, a
-// fraction of the form factors (docs/adaptive.md has the figures).
+// E + rho (sum_j F(x->j) B_j + S_i B F(x->spec) / F(i->spec)) with point-to-patch factors (Lambert's
+// contour formula) and one visibility ray per patch. S_i B is the light that reaches the vertex's
+// patch through mirrors and glass (specular_transport.h), taken in proportion to how much of them the
+// vertex sees against its patch; leaving it out darkened cornell-glass's ceiling by 25%. The mean of
+// the patches around a vertex (interpolateCorners) is what a patch holds on average, which at a
+// room's edge or next to a contact is not the light at the vertex; the equation at the vertex is.
+// Costs one point-to-patch factor per vertex and visible patch, a fraction of the form factors
+// (docs/adaptive-and-hierarchical.md has the figures).
 #pragma once
 
 #include "core/math.h"
