@@ -23,7 +23,7 @@ std::map<int, Rgb> objectMeans(const SolveResult& r) {
     return sum;
 }
 
-TEST(Hierarchy, ReachesTheMatrixSolvesRadiosityPerObject) {
+TEST(HierarchySlow, ReachesTheMatrixSolvesRadiosityPerObject) {
     const std::string box = sceneFile("cornell-box.json");
     const SolveResult matrix = test::solve(box, 1500, "gauss-seidel");
     const SolveResult hierarchy = test::solve(box, 1500, "hierarchical");
@@ -39,7 +39,7 @@ TEST(Hierarchy, ReachesTheMatrixSolvesRadiosityPerObject) {
     test::expectBalanceByRays(box, hierarchy, 2e-3, 256, "hierarchical");
 }
 
-TEST(Hierarchy, LinksGrowAboutLinearlyWithTheElements) {
+TEST(HierarchySlow, LinksGrowAboutLinearlyWithTheElements) {
     const std::string box = sceneFile("cornell-box.json");
     SolveOptions o;
     o.solver = "hierarchical";
