@@ -21,6 +21,7 @@
 #include "mesh/scene.h"
 #include "render/final_gather.h"
 #include "render/image_metrics.h"
+#include "render/integrators.h"
 #include "render/orbit.h"
 #include "render/path_tracer.h"
 #include "render/photon_map.h"
@@ -70,23 +71,15 @@ struct RenderCli {
     PhotonSettings photons;
 };
 
-// Samples per pixel that give a clean picture by default, per integrator.
-int defaultSpp(const std::string& integrator) {
-    if (integrator == "path") return 1024;
-    if (integrator == "final-gather") return 16;
-    return 4;
-}
-
 void addSolveOptions(CLI::App* cmd, SolveCli& s) {
     s.patches = cmd->add_option("--patches", s.options.meshing.targetPatches,
                                 "About this many patches in all (with --refine: to start from, default 400)")
                     ->capture_default_str()->check(CLI::Range(1, 100000000));
     cmd->add_option("--patch-size", s.options.meshing.patchSize, "Target patch edge length in metres (overrides --patches)")
         ->check(CLI::PositiveNumber);
-    cmd->add_option("--solver", s.options.solver,
-                    "auto | jacobi | gauss-seidel | southwell | hierarchical (auto: the matrix when it fits and the scene is "
-                    "small, the hierarchy otherwise; the log says which and why)")
-        ->capture_default_str();
+    std::string solverHelp;
+    for (const SolverInfo& e : solverRegistry()) solverHelp += cat(solverHelp.empty() ? "" : "; ", e.name, ": ", e.summary);
+    cmd->add_option("--solver", s.options.solver, solverHelp)->capture_default_str();
     cmd->add_option("--link-tolerance", s.options.hierarchy.linkTolerance,
                     "Hierarchical: split a link while it carries more than this share of the emitted power")
         ->capture_default_str()->check(CLI::Range(1e-9, 1.0));
@@ -187,18 +180,17 @@ StoredSolution solutionFor(const Scene& scene, const RenderCli& c, SolveCli& s, 
 int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     const Scene scene = loadScene(c.scene);
     const Camera camera = cameraFor(scene, c);
+    const IntegratorEntry& entry = findIntegrator(c.integrator);
     const std::string& integrator = c.integrator;
-    if (integrator != "radiosity" && integrator != "final-gather" && integrator != "path")
-        throw Error(cat("--integrator: unknown integrator '", integrator, "' (known: radiosity, final-gather, path)"));
     const std::filesystem::path out(c.out);
     const std::string ext = out.extension().string();
     if (ext != ".exr" && ext != ".hdr") throw Error(cat("--out ", c.out, ": expected an .exr or .hdr file name"));
-    const int spp = c.spp > 0 ? c.spp : defaultSpp(integrator);
+    const int spp = c.spp > 0 ? c.spp : entry.defaultSpp;
 
     // The geometry: the solve's patches, or (path tracer) the scene meshed as a solve would mesh it.
     StoredSolution stored;
-    if (integrator == "path") {
-        if (!c.solution.empty()) logInfo("the path tracer needs no solution: --solution ", c.solution, " is not read");
+    if (!entry.needsSolution) {
+        if (!c.solution.empty()) logInfo("the ", integrator, " integrator needs no solution: --solution ", c.solution, " is not read");
         stored.patches = meshScene(scene, s.options.meshing);
     } else {
         stored = solutionFor(scene, c, s, common);
@@ -217,20 +209,8 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     }
 
     Timer timer;
-    std::vector<Image> images;
-    if (integrator == "path") {
-        const SceneTracer tracer(scene, stored.patches);
-        for (const Camera& cam : cameras) images.push_back(renderPath(tracer, cam, spp, common.seed));
-    } else if (integrator == "radiosity") {
-        const CornerValues& corners = stored.corners;
-        RayScene rays(stored.patches);
-        for (const Camera& cam : cameras)
-            images.push_back(renderRadiosityView(scene, cam, stored.patches, rays, corners, {spp, common.seed}));
-    } else {
-        // The ray scene and the photon map serve every view of an orbit.
-        const SolvedScene solved(scene, stored.patches, stored.corners, c.gather, c.photons, common.seed);
-        for (const Camera& cam : cameras) images.push_back(solved.render(cam, spp, common.seed));
-    }
+    const std::vector<Image> images =
+        entry.render(RenderInputs{scene, stored.patches, stored.corners, c.gather, c.photons, common.seed}, cameras, spp);
     const double seconds = timer.seconds();
 
     // Everything is rendered before the first file is written.
@@ -357,8 +337,13 @@ int main(int argc, char** argv) {
     renderCmd->add_option("scene", render.scene, "Scene JSON file")->required();
     renderCmd->add_option("--out", render.out, "Output image (.exr or .hdr); a .png preview is written beside it")->required();
     renderCmd->add_option("--solution", render.solution, "Directory of a previous solve to reuse");
-    renderCmd->add_option("--integrator", render.integrator, "final-gather | path | radiosity")->capture_default_str();
-    renderCmd->add_option("--spp", render.spp, "Samples per pixel (default: final-gather 16, path 1024, radiosity 4)")
+    std::string integratorHelp, sppHelp;
+    for (const IntegratorEntry& e : integrators()) {
+        integratorHelp += cat(integratorHelp.empty() ? "" : "; ", e.name, ": ", e.summary);
+        sppHelp += cat(sppHelp.empty() ? "" : ", ", e.name, " ", e.defaultSpp);
+    }
+    renderCmd->add_option("--integrator", render.integrator, integratorHelp)->capture_default_str();
+    renderCmd->add_option("--spp", render.spp, cat("Samples per pixel (default: ", sppHelp, ")"))
         ->check(CLI::Range(1, 1 << 20));
     renderCmd->add_option("--direct-samples", render.gather.directSamples,
                           "Final gather: emitter samples per camera sample")

@@ -159,7 +159,7 @@ std::string tradeCsv(const std::vector<Row>& rows) {
     std::string csv =
         "method,sweep,patches_asked,patches,visibility_rays,ff_tolerance,tolerance,specular_rays,photons,photon_k,gather_rays,spp,"
         "seconds_meshing,seconds_form_factors,seconds_specular,seconds_solve,seconds_photons,seconds_render,"
-        "seconds_total,peak_memory_mib,matrix_mib,rays,image_error_blurred,image_error_raw,rmse,"
+        "seconds_total,peak_memory_mib,matrix_mib,rays,pooled_l1_blurred,per_pixel_relative_blurred,rmse,"
         "object_error_max,object_error_mean,pareto\n";
     auto opt = [](double v) { return v < 0 ? std::string() : cat(v); };
     for (const Row& r : rows) {
@@ -225,7 +225,7 @@ std::string summaryMarkdown(const BenchResult& r) {
     std::string md = cat("# Bench: ", r.scene, "\n\nMachine: ", r.machine, ". Images ", r.width, "x", r.height,
                          "; reference: the path tracer at ", r.referenceSpp, " spp",
                          r.referenceSeconds > 0 ? cat(" (", fixed(r.referenceSeconds, 1), " s)") : std::string(" (from the cache)"),
-                         ". Error: mean relative error per pixel and channel after a 5x5 box blur. Seconds: wall "
+                         ". Error: pooled L1 after a 5x5 box blur, sum |blur(image) - blur(reference)| / sum blur(reference) over all pixels and channels. Seconds: wall "
                          "seconds from the scene file to the image.\n\n![error against time](error-time.png)\n"
                          "![cost against patches](cost-patches.png)\n\n");
     md += "## Settings that reach 10%, 3% and 1% error\n\n| error | method | cheapest setting that reaches it | seconds | error |\n|---|---|---|---|---|\n";
@@ -367,7 +367,7 @@ bool writePlots(const BenchResult& r, const std::string& dir) {
         for (const Row& x : r.rows)
             if (keep(x)) rows.push_back(&x);
         std::sort(rows.begin(), rows.end(), [](const Row* a, const Row* b) { return a->total() < b->total(); });
-        std::string text = "# seconds_total image_error_blurred\n";
+        std::string text = "# seconds_total pooled_l1_blurred\n";
         for (const Row* x : rows) text += cat(x->total(), " ", x->imageError, "\n");
         return text;
     };
@@ -383,7 +383,7 @@ bool writePlots(const BenchResult& r, const std::string& dir) {
     for (const Row* x : solves) cost += cat(x->patchesMade, " ", x->formFactors, " ", x->solve, " ", x->peakMiB, " ", x->matrixMiB, "\n");
     writeFileAtomic((data / "cost.dat").string(), cost);
     for (const char* kind : {"uniform", "adaptive", "hierarchical"}) {
-        std::string text = "# patches seconds_total image_error_blurred storage_mib links\n";
+        std::string text = "# patches seconds_total pooled_l1_blurred storage_mib links\n";
         for (const Row* x : meshRows(r.rows, kind))
             text += cat(x->patchesMade, " ", x->total(), " ", x->imageError, " ", x->storageMiB, " ", x->links, "\n");
         writeFileAtomic((data / cat("mesh-", kind, ".dat")).string(), text);
@@ -397,7 +397,7 @@ bool writePlots(const BenchResult& r, const std::string& dir) {
         "set output 'error-time.png'\n"
         "set logscale xy\nset grid\nset key top right box opaque\n"
         "set xlabel 'wall seconds, scene file to image (", r.machine, ")'\n"
-        "set ylabel 'mean relative error after a 5x5 blur'\n"
+        "set ylabel 'pooled L1 after a 5x5 blur'\n"
         "set format y '%g'\n"
         "set title \"", r.scene, ": error against time at ", r.width, "x", r.height, " (reference: path tracer, ",
         r.referenceSpp, " spp)\" noenhanced\n",
@@ -418,7 +418,7 @@ bool writePlots(const BenchResult& r, const std::string& dir) {
         "unset y2label\nunset y2tics\nunset logscale y2\nset ytics mirror\n"
         "set output 'meshes.png'\n"
         "set title \"", r.scene, ": radiosity view error against patches (", r.machine, ")\" noenhanced\n"
-        "set logscale xy\nset xlabel 'patches (hierarchy: leaves)'\nset ylabel 'mean relative error after a 5x5 blur'\n"
+        "set logscale xy\nset xlabel 'patches (hierarchy: leaves)'\nset ylabel 'pooled L1 after a 5x5 blur'\n"
         "set key top right box opaque\n"
         "plot 'plot-data/mesh-uniform.dat' using 1:3 with linespoints pt 7 lw 2 lc rgb '#7570b3' title 'uniform', \\\n"
         "     'plot-data/mesh-adaptive.dat' using 1:3 with linespoints pt 5 lw 2 lc rgb '#1b9e77' title 'adaptive (--refine)', \\\n"

@@ -263,7 +263,7 @@ const Image& Bench::reference(BenchResult& result) {
     logInfo("bench: rendering the path-traced reference (", result.referenceSpp, " spp at ", cam.width, "x", cam.height,
             "), cached in ", path);
     Timer timer;
-    reference_ = quietly([&] { return renderPath(*pathTracer_, cam, result.referenceSpp, mixSeed(options_.seed, 0x5EF)); });
+    reference_ = quietly([&] { return renderPath(*pathTracer_, cam, result.referenceSpp, streamSeed(options_.seed, Stream::BenchReference)); });
     result.referenceSeconds = timer.seconds();
     ensureDirectory(dir);
     writeLinearImage(reference_, path);
@@ -380,8 +380,8 @@ Row Bench::runOne(const Setting& s) {
         row.peakMiB = std::max(rec.peakMiB, peakMemoryBytes() / (1 << 20));
     }
     const ImageError blurred = compareBlurred(image, reference_), raw = compareImages(image, reference_);
-    row.imageError = blurred.meanRelative;
-    row.imageErrorRaw = raw.meanRelative;
+    row.imageError = blurred.pooledL1;
+    row.imageErrorRaw = blurred.meanRelative;
     row.rmse = raw.rmse;
     return row;
 }

@@ -55,8 +55,9 @@ struct Row {
     double storageMiB = 0;       // what the solve's light transport is stored in: matrix, or elements and links
     uint64_t rays = 0;           // rays cast by the run's stages (solve + render)
     uint64_t renderRays = 0;     // of those, the final gather's render alone (photons not counted)
-    double imageError = 0;       // mean relative error after a 5x5 box blur, against the reference
-    double imageErrorRaw = 0, rmse = 0;
+    double imageError = 0;       // pooled L1 after a 5x5 box blur, against the reference
+    double imageErrorRaw = 0;    // per-pixel relative error after the same blur (beside it, labelled)
+    double rmse = 0;
     double objectErrorMax = -1, objectErrorMean = -1;   // radiosity per object against the finest solve; -1: none
     bool pareto = false;
 };

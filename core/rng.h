@@ -15,6 +15,19 @@ inline uint64_t mixSeed(uint64_t a, uint64_t b = 0, uint64_t c = 0) {
     return z ^ (z >> 31);
 }
 
+// The program's random streams, one per purpose, so that no two purposes draw the same numbers for
+// one seed and work item; every generator is made through one of them (streamRng, pairRng).
+enum class Stream : uint64_t {
+    Visibility = 1,                // form-factor visibility rays of a patch pair
+    BackVisibility = 2,            // the rays to the back part of a straddling pair
+    Pixels = 3,                    // a pixel's camera samples (pairRng: row, column)
+    SpecularTransport = 0x5bec,    // the solve's rays through mirrors and glass, per patch
+    Photons = 0x9407,              // caustic photons, per photon
+    EscapeRays = 0xe5ca9e,         // rays counting the escaped power, per patch
+    CausticRegion = 0xca057,       // emitter samples that find the caustic region, per pixel
+    BenchReference = 0x5EF,        // the bench's path-traced reference image
+};
+
 class Rng {
 public:
     explicit Rng(uint64_t seed, uint64_t stream = 0) {
@@ -37,5 +50,14 @@ public:
 private:
     uint64_t state_, inc_;
 };
+
+// The generator of work item `item` in stream `s`.
+inline Rng streamRng(uint64_t seed, Stream s, uint64_t item) { return Rng(mixSeed(seed, uint64_t(s), item)); }
+// The generator of a pair of work items (patches a, b; a pixel's row and column).
+inline Rng pairRng(uint64_t seed, Stream s, uint64_t a, uint64_t b) {
+    return Rng(mixSeed(mixSeed(seed, uint64_t(s)), a, b));
+}
+// The stream's seed, for code that takes a seed and makes its own generators.
+inline uint64_t streamSeed(uint64_t seed, Stream s) { return mixSeed(seed, uint64_t(s)); }
 
 }  // namespace penumbra

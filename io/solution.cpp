@@ -86,9 +86,9 @@ StoredSolution readSolution(const std::string& path) {
         s.radiosity.push_back(r.rgb());
         s.display.push_back(r.rgb());
         if (!v01) {
-            std::array<Rgb, 4> c;
-            for (auto& value : c) value = r.rgb();
-            s.corners.push_back(c);
+            std::array<Rgb, 4> uniform;
+            for (auto& value : uniform) value = r.rgb();
+            s.corners.push_back(uniform);
         }
     }
     if (s.patches.size() != n) throw Error(cat(path, ": solution file is damaged (degenerate patch)"));

@@ -126,9 +126,9 @@ PolyMesh cubeSphere(const SceneObject& o, double h) {
     };
     // A mirroring transform (negative determinant) would turn the facets inside out.
     const bool mirrored = o.toWorld.linear().determinant() < 0;
-    auto triangle = [&](PolyMesh::VertexHandle a, PolyMesh::VertexHandle b, PolyMesh::VertexHandle c) {
-        if (mirrored) mesh.add_face(a, c, b);
-        else mesh.add_face(a, b, c);
+    auto triangle = [&](PolyMesh::VertexHandle a, PolyMesh::VertexHandle b, PolyMesh::VertexHandle d) {
+        if (mirrored) mesh.add_face(a, d, b);
+        else mesh.add_face(a, b, d);
     };
     for (int axis = 0; axis < 3; ++axis)
         for (int sign = -1; sign <= 1; sign += 2) {

@@ -19,7 +19,7 @@ Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, con
         prepareTracingThread();
         for (int64_t y = y0; y < y1; ++y) {
             for (int x = 0; x < camera.width; ++x) {
-                Rng rng(mixSeed(seed, uint64_t(y), uint64_t(x)));
+                Rng rng = pairRng(seed, Stream::Pixels, uint64_t(y), uint64_t(x));
                 Rgb sum = Rgb::Zero();
                 for (int s = 0; s < spp; ++s) {
                     const double px = x + ((s % side) + rng.uniform()) / side;

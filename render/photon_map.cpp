@@ -59,7 +59,7 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
         prepareTracingThread();
         for (int64_t c = c0; c < c1; ++c) {
             for (int64_t k = c * kChunk; k < std::min(n, (c + 1) * kChunk); ++k) {
-                Rng rng(mixSeed(settings.seed, 0x9407, uint64_t(k)));
+                Rng rng = streamRng(settings.seed, Stream::Photons, uint64_t(k));
                 const EmitterSample e = tracer.sampleEmitter(rng);
                 // Cosine-distributed emission: the power is pi L_e / (pdf_area N).
                 Rgb power = kPi * e.radiance / (e.pdfArea * double(n));

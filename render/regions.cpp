@@ -88,7 +88,7 @@ std::vector<char> causticMask(const SceneTracer& tracer, const PhotonMap& causti
                 if (!x.found || x.material->type != MaterialType::Diffuse || x.patch < 0 || x.material->emits())
                     continue;
                 caustic[size_t(k)] = caustics.irradiance(x.point, x.normal).sum();
-                Rng rng(mixSeed(0xca057, uint64_t(k)));
+                Rng rng = streamRng(0, Stream::CausticRegion, uint64_t(k));
                 const Vec3 from = x.point + tracer.epsilon() * x.normal;
                 double sum = 0;
                 for (int s = 0; s < lightSamples; ++s) {

@@ -209,15 +209,23 @@ std::string chooseSolver(const Scene& scene, const SolveOptions& options, size_t
 
 }  // namespace
 
+std::vector<SolverInfo> solverRegistry() {
+    std::vector<SolverInfo> out{{"auto", "the matrix when it fits and the scene is small or has mirrors or glass, else the "
+                                         "hierarchy (the log and report say which and why)"}};
+    for (const std::string& name : solverNames()) out.push_back({name, solverSummary(name)});
+    out.push_back({"hierarchical", "links between element quadtrees, about linear storage (diffuse scenes)"});
+    return out;
+}
+
 std::vector<std::string> allSolverNames() {
-    std::vector<std::string> names{"auto"};
-    for (const std::string& name : solverNames()) names.push_back(name);
-    names.push_back("hierarchical");
+    std::vector<std::string> names;
+    for (const SolverInfo& s : solverRegistry()) names.push_back(s.name);
     return names;
 }
 
 SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer) {
     SolveResult r;
+    r.options = options;
     const auto names = allSolverNames();
     if (std::find(names.begin(), names.end(), options.solver) == names.end()) {
         std::string known;

@@ -37,6 +37,7 @@ struct RefineRound {
 };
 
 struct SolveResult {
+    SolveOptions options;       // the settings (and seed, options.formFactors.seed) that made this result
     std::string solverName;     // the solver that ran (auto resolved)
     std::string solverReason;   // why auto chose it (empty when named)
     HierarchyStats hierarchy;   // --solver hierarchical only
@@ -54,7 +55,12 @@ struct SolveResult {
 
 SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer = {});
 
-// The names --solver accepts, in the order shown to users.
+// Every solver --solver accepts, in the order shown to users: auto, the matrix solvers
+// (solvers.h), the hierarchy; with what each does.
+struct SolverInfo {
+    std::string name, summary;
+};
+std::vector<SolverInfo> solverRegistry();
 std::vector<std::string> allSolverNames();
 
 // Bytes of memory available to this process (MemAvailable), or 0 if unknown.

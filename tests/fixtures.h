@@ -21,6 +21,14 @@
 
 namespace penumbra::test {
 
+// True in the AddressSanitizer build, which runs every test 5-15 times slower: the heaviest quick
+// tests take smaller sizes there (memory errors do not need big scenes to show).
+#ifdef PENUMBRA_SANITIZED
+constexpr bool kSanitized = true;
+#else
+constexpr bool kSanitized = false;
+#endif
+
 struct CommandResult {
     int status;
     std::string output;   // stderr and stdout together

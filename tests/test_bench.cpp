@@ -67,7 +67,7 @@ TEST(BenchSlow, QuickSweepWritesTheTradeAndErrorFallsAsCostRises) {
     ASSERT_GE(rows.size(), 10u);
     std::vector<std::pair<double, double>> path, gather;   // (spp or seconds, error)
     for (const auto& row : rows) {
-        const double error = std::stod(row.at("image_error_blurred"));
+        const double error = std::stod(row.at("pooled_l1_blurred"));
         EXPECT_GT(error, 0.0);
         EXPECT_GT(std::stod(row.at("seconds_total")), 0.0);
         EXPECT_GT(std::stod(row.at("rays")), 0.0);

@@ -13,6 +13,7 @@
 
 #include "fixtures.h"
 #include "io/image_io.h"
+#include "io/solution.h"
 #include "render/image_metrics.h"
 
 using namespace penumbra;
@@ -104,7 +105,8 @@ TEST(CliErrors, ClosedWhiteFurnaceHasNoSteadyState) {
 }
 
 TEST(CliErrors, OptionProblems) {
-    expectRefused(sceneWith("", ""), {"unknown solver 'magic'", "jacobi", "gauss-seidel", "southwell"}, "--solver magic");
+    expectRefused(sceneWith("", ""), {"unknown solver 'magic'", "auto", "jacobi", "gauss-seidel", "southwell", "hierarchical"},
+                  "--solver magic");
     expectRefused(sceneWith("", ""), {"--max-memory", "patches fit"}, "--solver gauss-seidel --max-memory 0.000001");
     expectRefused(sceneWith("", ""), {"--refine"}, "--refine -1");
     expectRefused(sceneWith("", ""), {"--vertex-radiosity", "gather"}, "--vertex-radiosity nearest");
@@ -120,6 +122,17 @@ TEST(Cli, SceneWithoutEmitterWarnsAndSolvesToBlack) {
     EXPECT_EQ(r.status, 0) << r.output;
     EXPECT_NE(r.output.find("warning"), std::string::npos);
     EXPECT_NE(r.output.find("no material emits"), std::string::npos);
+    // Black: nothing emitted, absorbed or escaped, and no radiosity anywhere (report and solution).
+    std::ifstream in(test::tempDir() + "/dark/report.json");
+    const nlohmann::json report = nlohmann::json::parse(in);
+    for (const char* key : {"emitted_power_w", "absorbed_power_w", "escaped_power_w"})
+        for (const auto& v : report["totals"][key]) EXPECT_EQ(v.get<double>(), 0.0) << key;
+    for (const auto& v : report["objects"]["q"]["radiosity_mean"]) EXPECT_EQ(v.get<double>(), 0.0);
+    const StoredSolution solution = readSolution(test::tempDir() + "/dark/solution.bin");
+    ASSERT_FALSE(solution.radiosity.empty());
+    for (const Rgb& B : solution.radiosity) EXPECT_EQ(B.abs().maxCoeff(), 0.0);
+    for (const auto& corners : solution.corners)
+        for (const Rgb& c : corners) EXPECT_EQ(c.abs().maxCoeff(), 0.0);
 }
 
 TEST(Cli, CornellBoxSolvesToAConformingReportAndRendersFromTheSolution) {
@@ -153,6 +166,7 @@ TEST(Cli, CornellBoxSolvesToAConformingReportAndRendersFromTheSolution) {
                                           "/unknown.exr"));
     EXPECT_NE(unknown.status, 0);
     EXPECT_NE(unknown.output.find("--integrator"), std::string::npos) << unknown.output;
+    EXPECT_NE(unknown.output.find("known: final-gather, path, radiosity"), std::string::npos) << unknown.output;
     EXPECT_FALSE(fs::exists(out + "/unknown.exr"));
 
     // A solution belongs to its scene: another scene is refused, and nothing is written.
@@ -168,10 +182,16 @@ TEST(Cli, RefinedSolveReportsItsRoundsAndConforms) {
     const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
     const std::string out = test::tempDir() + "/refined";
     fs::remove_all(out);
-    const CommandResult solve = run(cat("solve ", scene, " --out ", out, " --refine 0.1 --patches 120 --max-patches 400 --quiet"));
+    const CommandResult solve =
+        run(cat("solve ", scene, " --out ", out, " --refine 0.1 --patches 120 --max-patches 400 --seed 42 --quiet"));
     ASSERT_EQ(solve.status, 0) << solve.output;
     std::ifstream in(out + "/report.json");
     const nlohmann::json report = nlohmann::json::parse(in);
+    // The report says how it was made: the settings given and the seed.
+    EXPECT_EQ(report["settings"]["seed"].get<int>(), 42);
+    EXPECT_EQ(report["settings"]["refine"].get<double>(), 0.1);
+    EXPECT_EQ(report["settings"]["max_patches"].get<int>(), 400);
+    EXPECT_EQ(report["settings"]["solver"].get<std::string>(), "auto");
     const auto& rounds = report["solver"]["refinement"];
     ASSERT_GE(rounds.size(), 2u);
     EXPECT_GT(rounds.back()["patches"].get<int>(), rounds.front()["patches"].get<int>());

@@ -22,7 +22,7 @@ EscapeEstimate estimateEscapedPower(const SceneTracer& tracer, const std::vector
             for (int64_t ii = begin; ii < end; ++ii) {
                 const size_t i = size_t(ii);
                 if (!(B[i].maxCoeff() > 0)) continue;
-                Rng rng(mixSeed(seed, 0xe5ca9e, i));
+                Rng rng = streamRng(seed, Stream::EscapeRays, i);
                 Rgb sum = Rgb::Zero(), sum2 = Rgb::Zero();
                 for (int r = 0; r < rays; ++r) {
                     const double u1 = ((r % side) + rng.uniform()) / side, u2 = ((r / side) + rng.uniform()) / side;

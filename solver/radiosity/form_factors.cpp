@@ -97,8 +97,8 @@ PlaneSides planeSides(const PatchSet& p, size_t a, size_t b) {
 
 
 Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, size_t b, int sideA, int sideB,
-                           bool clipped, int base, uint64_t seed) {
-    Rng rng(mixSeed(seed, a, b));
+                           bool clipped, int base, uint64_t seed, Stream stream) {
+    Rng rng = pairRng(seed, stream, a, b);
     const Vec3 na = sideA * p.normal[a], nb = sideB * p.normal[b];
     const Vec3 liftA = liftDistance(p, a) * na, liftB = liftDistance(p, b) * nb;
     // The part of a in front of b's receiving face, and of b in front of a's sending face.
@@ -165,7 +165,7 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
                     // the block itself), and integrated only when some of them get through.
                     auto backPart = [&](size_t from, size_t to, bool fromIsSource) {
                         const Visibility vb = visibleFraction(patches, scene, from, to, 1, -1, clipped, settings.visibilityRays,
-                                                              settings.seed + 1);
+                                                              settings.seed, Stream::BackVisibility);
                         myRays += uint64_t(vb.rays);
                         if (vb.fraction == 0) return 0.0;
                         return vb.fraction *

@@ -5,6 +5,8 @@
 // `backTransfers` so the power balance can count it.
 #pragma once
 
+#include "core/rng.h"
+
 #include <cstdint>
 #include <vector>
 
@@ -76,7 +78,7 @@ struct Visibility {
     int rays;
 };
 Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, size_t b, int sideA, int sideB,
-                           bool clipped, int base, uint64_t seed);
+                           bool clipped, int base, uint64_t seed, Stream stream = Stream::Visibility);
 
 FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings);
 

@@ -113,9 +113,9 @@ public:
                 for (size_t j = 0; j < n; ++j)
                     if (row[j] != 0) unshot[j] += s.reflectance[j] * (ai * row[j] / s.area[j]) * dB;
                 if (!s.transport.empty())
-                    for (size_t k = s.transport.outStart[best]; k < s.transport.outStart[best + 1]; ++k) {
-                        const size_t j = size_t(s.transport.outTarget[k]);
-                        unshot[j] += s.reflectance[j] * s.transport.outWeight[k] * dB;
+                    for (size_t t = s.transport.outStart[best]; t < s.transport.outStart[best + 1]; ++t) {
+                        const size_t j = size_t(s.transport.outTarget[t]);
+                        unshot[j] += s.reflectance[j] * s.transport.outWeight[t] * dB;
                     }
             }
             // The unshot vector is the exact residual E + rho F B - B; summing it afresh each round
@@ -138,13 +138,19 @@ public:
 
 struct SolverEntry {
     const char* name;
+    const char* summary;
     std::unique_ptr<RadiositySolver> (*make)();
 };
 
+// The matrix solvers: a new one is one entry here (the command line, its help and the solve's
+// registry take their names from this table).
 const SolverEntry kSolvers[] = {
-    {"jacobi", [] { return std::unique_ptr<RadiositySolver>(new JacobiSolver); }},
-    {"gauss-seidel", [] { return std::unique_ptr<RadiositySolver>(new GaussSeidelSolver); }},
-    {"southwell", [] { return std::unique_ptr<RadiositySolver>(new SouthwellSolver); }},
+    {"jacobi", "sweeps that gather from the last sweep's radiosity",
+     [] { return std::unique_ptr<RadiositySolver>(new JacobiSolver); }},
+    {"gauss-seidel", "sweeps that gather from the radiosity this sweep already updated (about twice Jacobi's pace)",
+     [] { return std::unique_ptr<RadiositySolver>(new GaussSeidelSolver); }},
+    {"southwell", "progressive shooting of the largest unshot power, with an ambient term for display",
+     [] { return std::unique_ptr<RadiositySolver>(new SouthwellSolver); }},
 };
 
 }  // namespace
@@ -153,6 +159,12 @@ std::vector<std::string> solverNames() {
     std::vector<std::string> names;
     for (const auto& e : kSolvers) names.push_back(e.name);
     return names;
+}
+
+std::string solverSummary(const std::string& name) {
+    for (const auto& e : kSolvers)
+        if (name == e.name) return e.summary;
+    return "";
 }
 
 std::unique_ptr<RadiositySolver> makeSolver(const std::string& name) {

@@ -43,8 +43,9 @@ public:
                                     const SolverSettings& settings, const StepObserver& observer = {}) const = 0;
 };
 
-// The names --solver accepts, in the order shown to users.
+// The matrix solvers' names, in the order shown to users, and what each does.
 std::vector<std::string> solverNames();
+std::string solverSummary(const std::string& name);
 // Throws Error listing the known names when `name` is not one of them.
 std::unique_ptr<RadiositySolver> makeSolver(const std::string& name);
 

@@ -70,7 +70,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
             if (!any) continue;
             fates.clear();
             RowResult& row = rows[i];
-            Rng rng(mixSeed(settings.seed, 0x5bec, i));
+            Rng rng = streamRng(settings.seed, Stream::SpecularTransport, i);
             int side = 1;
             while (side * side < settings.raysPerPatch) ++side;
             for (int r = 0; r < side * side; ++r) {

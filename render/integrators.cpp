@@ -1,0 +1,58 @@
+#include "render/integrators.h"
+
+#include "core/error.h"
+#include "render/path_tracer.h"
+#include "render/radiosity_view.h"
+#include "solver/tracer.h"
+
+namespace penumbra {
+namespace {
+
+std::vector<Image> renderFinalGatherViews(const RenderInputs& in, const std::vector<Camera>& cameras, int spp) {
+    // The ray scene and the photon map serve every view of an orbit.
+    const SolvedScene solved(in.scene, in.patches, in.corners, in.gather, in.photons, in.seed);
+    std::vector<Image> images;
+    for (const Camera& camera : cameras) images.push_back(solved.render(camera, spp, in.seed));
+    return images;
+}
+
+std::vector<Image> renderPathViews(const RenderInputs& in, const std::vector<Camera>& cameras, int spp) {
+    const SceneTracer tracer(in.scene, in.patches);
+    std::vector<Image> images;
+    for (const Camera& camera : cameras) images.push_back(renderPath(tracer, camera, spp, in.seed));
+    return images;
+}
+
+std::vector<Image> renderRadiosityViews(const RenderInputs& in, const std::vector<Camera>& cameras, int spp) {
+    const RayScene rays(in.patches);
+    std::vector<Image> images;
+    for (const Camera& camera : cameras)
+        images.push_back(renderRadiosityView(in.scene, camera, in.patches, rays, in.corners, {spp, in.seed}));
+    return images;
+}
+
+}  // namespace
+
+const std::vector<IntegratorEntry>& integrators() {
+    static const std::vector<IntegratorEntry> table{
+        {"final-gather", "the solved radiosity gathered at every visible point, with direct light and caustics", 16, true,
+         renderFinalGatherViews},
+        {"path", "unbiased path tracing of the scene (needs no solve)", 1024, false, renderPathViews},
+        {"radiosity", "the solved radiosity itself, interpolated over the patches", 4, true, renderRadiosityViews},
+    };
+    return table;
+}
+
+const IntegratorEntry& findIntegrator(const std::string& name) {
+    for (const IntegratorEntry& e : integrators())
+        if (name == e.name) return e;
+    throw Error(cat("--integrator: unknown integrator '", name, "' (known: ", integratorNames(", "), ")"));
+}
+
+std::string integratorNames(const char* separator) {
+    std::string names;
+    for (const IntegratorEntry& e : integrators()) names += cat(names.empty() ? "" : separator, e.name);
+    return names;
+}
+
+}  // namespace penumbra
