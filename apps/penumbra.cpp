@@ -1,7 +1,6 @@
 // The `penumbra` command line: parses, calls the library, catches once, exits. The verbs and
 // options are those of shared/CONTRACT.md plus extensions listed in `penumbra --help`.
 #include <CLI/CLI.hpp>
-
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -64,8 +63,8 @@ struct SolveCli {
 
 struct RenderCli {
     std::string scene, out, solution, integrator = "final-gather", camera, resolution;
-    int spp = 0;   // 0: the integrator's default
-    int orbit = 0; // > 0: that many turntable views
+    int spp = 0;    // 0: the integrator's default
+    int orbit = 0;  // > 0: that many turntable views
     double exposure = 0;
     GatherSettings gather;
     PhotonSettings photons;
@@ -74,43 +73,56 @@ struct RenderCli {
 void addSolveOptions(CLI::App* cmd, SolveCli& s) {
     s.patches = cmd->add_option("--patches", s.options.meshing.targetPatches,
                                 "About this many patches in all (with --refine: to start from, default 400)")
-                    ->capture_default_str()->check(CLI::Range(1, 100000000));
-    cmd->add_option("--patch-size", s.options.meshing.patchSize, "Target patch edge length in metres (overrides --patches)")
+                    ->capture_default_str()
+                    ->check(CLI::Range(1, 100000000));
+    cmd->add_option("--patch-size", s.options.meshing.patchSize,
+                    "Target patch edge length in metres (overrides --patches)")
         ->check(CLI::PositiveNumber);
     std::string solverHelp;
-    for (const SolverInfo& e : solverRegistry()) solverHelp += cat(solverHelp.empty() ? "" : "; ", e.name, ": ", e.summary);
+    for (const SolverInfo& e : solverRegistry())
+        solverHelp += cat(solverHelp.empty() ? "" : "; ", e.name, ": ", e.summary);
     cmd->add_option("--solver", s.options.solver, solverHelp)->capture_default_str();
     cmd->add_option("--link-tolerance", s.options.hierarchy.linkTolerance,
                     "Hierarchical: split a link while it carries more than this share of the emitted power")
-        ->capture_default_str()->check(CLI::Range(1e-9, 1.0));
+        ->capture_default_str()
+        ->check(CLI::Range(1e-9, 1.0));
     cmd->add_option("--roots", s.options.hierarchyRoots, "Hierarchical: the scene is meshed into about this many roots")
-        ->capture_default_str()->check(CLI::Range(1, 1000000));
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1000000));
     cmd->add_option("--tolerance", s.options.solverSettings.tolerance,
                     "Stop when the unshot fraction of the emitted power falls below this")
-        ->capture_default_str()->check(CLI::PositiveNumber);
+        ->capture_default_str()
+        ->check(CLI::PositiveNumber);
     cmd->add_option("--max-iterations", s.options.solverSettings.maxIterations, "Iteration cap")
-        ->capture_default_str()->check(CLI::Range(1, 100000000));
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100000000));
     cmd->add_option("--visibility-rays", s.options.formFactors.visibilityRays,
                     "Visibility rays per patch pair (x4 where a shadow edge crosses the pair)")
-        ->capture_default_str()->check(CLI::Range(1, 4096));
+        ->capture_default_str()
+        ->check(CLI::Range(1, 4096));
     cmd->add_option("--ff-tolerance", s.options.formFactors.cubature.tolerance,
                     "Target relative error of each unoccluded form factor")
-        ->capture_default_str()->check(CLI::Range(1e-12, 1.0));
+        ->capture_default_str()
+        ->check(CLI::Range(1e-12, 1.0));
     cmd->add_option("--specular-rays", s.options.specular.raysPerPatch,
                     "Rays per patch that trace light through mirrors and glass in the solve")
-        ->capture_default_str()->check(CLI::Range(1, 1 << 24));
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 24));
     cmd->add_option("--refine", s.options.refine.tolerance,
                     "Adaptive subdivision: after each solve, split patches whose radiosity differs from a neighbour's, "
                     "or whose light a shadow edge changes, by more than this fraction (e.g. 0.1)")
         ->check(CLI::Range(1e-6, 10.0));
     cmd->add_option("--max-patches", s.options.refine.maxPatches, "Patch budget of --refine")
-        ->capture_default_str()->check(CLI::Range(1, 100000000));
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100000000));
     cmd->add_option("--refine-rounds", s.options.refine.maxRounds, "Most rounds of --refine")
-        ->capture_default_str()->check(CLI::Range(1, 100));
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100));
     cmd->add_option("--vertex-radiosity", s.vertexRadiosity,
                     "Displayed radiosity at the patch corners: gather (the radiosity equation at each vertex) or "
                     "average (the mean of the patches around it; cheaper, blurs edges and contacts)")
-        ->capture_default_str()->check(CLI::IsMember({"gather", "average"}));
+        ->capture_default_str()
+        ->check(CLI::IsMember({"gather", "average"}));
     cmd->add_option("--max-memory", s.maxMemoryGiB, "Memory budget in GiB for the matrix (default: what is available)")
         ->check(CLI::PositiveNumber);
 }
@@ -128,10 +140,12 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
     // Everything is computed before the first byte is written; each file appears whole.
     ensureDirectory(s.out);
     const std::filesystem::path dir(s.out);
-    writeSolution((dir / "solution.bin").string(), {scene.fingerprint, r.patches, r.solution.B, r.solution.display, r.corners});
+    writeSolution((dir / "solution.bin").string(),
+                  {scene.fingerprint, r.patches, r.solution.B, r.solution.display, r.corners});
     writeFileAtomic((dir / "convergence.csv").string(), convergenceCsv(r));
     if (scene.hasCamera) {
-        const Image view = renderRadiosityView(scene, scene.camera, r.patches, *r.rays, corners, {s.viewSpp, common.seed});
+        const Image view =
+            renderRadiosityView(scene, scene.camera, r.patches, *r.rays, corners, {s.viewSpp, common.seed});
         writeLinearImage(view, (dir / "radiosity.exr").string());
         writePreviewPng(view, (dir / "radiosity.png").string());
     }
@@ -156,7 +170,9 @@ Camera cameraFor(const Scene& scene, const RenderCli& c) {
     if (!c.camera.empty()) {
         camera = parseCamera(c.camera, scene.unitScale, "--camera");
     } else if (!scene.hasCamera) {
-        throw Error(cat(scene.path, ": camera: the scene has no camera; add one or pass --camera '{\"position\": ..., \"look_at\": ...}'"));
+        throw Error(
+            cat(scene.path,
+                ": camera: the scene has no camera; add one or pass --camera '{\"position\": ..., \"look_at\": ...}'"));
     }
     if (!c.resolution.empty()) std::tie(camera.width, camera.height) = parseResolution(c.resolution);
     return camera;
@@ -190,7 +206,8 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     // The geometry: the solve's patches, or (path tracer) the scene meshed as a solve would mesh it.
     StoredSolution stored;
     if (!entry.needsSolution) {
-        if (!c.solution.empty()) logInfo("the ", integrator, " integrator needs no solution: --solution ", c.solution, " is not read");
+        if (!c.solution.empty())
+            logInfo("the ", integrator, " integrator needs no solution: --solution ", c.solution, " is not read");
         stored.patches = meshScene(scene, s.options.meshing);
     } else {
         stored = solutionFor(scene, c, s, common);
@@ -209,8 +226,8 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     }
 
     Timer timer;
-    const std::vector<Image> images =
-        entry.render(RenderInputs{scene, stored.patches, stored.corners, c.gather, c.photons, common.seed}, cameras, spp);
+    const std::vector<Image> images = entry.render(
+        RenderInputs{scene, stored.patches, stored.corners, c.gather, c.photons, common.seed}, cameras, spp);
     const double seconds = timer.seconds();
 
     // Everything is rendered before the first file is written.
@@ -236,7 +253,7 @@ int runView(RenderCli& c, SolveCli& s, ViewerOptions& options, const CommonOptio
     const Camera camera = cameraFor(scene, c);
     if (!options.screenshot.empty() && std::filesystem::path(options.screenshot).extension() != ".png")
         throw Error(cat("--screenshot ", options.screenshot, ": expected a .png file name"));
-    requireDisplay();   // before any solving
+    requireDisplay();  // before any solving
     const StoredSolution stored = solutionFor(scene, c, s, common);
     if (!c.solution.empty()) {
         std::ifstream report((std::filesystem::path(c.solution) / "report.json").string());
@@ -267,8 +284,8 @@ int runExport(const std::string& dir, const std::string& out, std::string format
         writeGltf(mesh, out, exposure);
     else
         writePly(mesh, out, exposure);
-    logInfo("wrote ", out, ": ", mesh.positions.size(), " vertices, ", mesh.triangles.size(), " triangles, colours = ",
-            format == "gltf" ? "min(1, " : "sRGB(", exposure, " x radiance)");
+    logInfo("wrote ", out, ": ", mesh.positions.size(), " vertices, ", mesh.triangles.size(),
+            " triangles, colours = ", format == "gltf" ? "min(1, " : "sRGB(", exposure, " x radiance)");
     return 0;
 }
 
@@ -277,9 +294,10 @@ int runCompare(const std::string& imageFile, const std::string& referenceFile, c
                const std::string& cameraJson) {
     const Image a = readLinearImage(imageFile), ref = readLinearImage(referenceFile);
     const ImageError raw = compareImages(a, ref), blurred = compareBlurred(a, ref);
-    std::printf("pooled L1 after 5x5 box blur %.4f (without blur %.4f); per-pixel relative error %.4f (after blur %.4f); "
-                "RMSE %.6g; brightness ratio %.4f\n",
-                blurred.pooledL1, raw.pooledL1, raw.meanRelative, blurred.meanRelative, raw.rmse, raw.meanRatio);
+    std::printf(
+        "pooled L1 after 5x5 box blur %.4f (without blur %.4f); per-pixel relative error %.4f (after blur %.4f); "
+        "RMSE %.6g; brightness ratio %.4f\n",
+        blurred.pooledL1, raw.pooledL1, raw.meanRelative, blurred.meanRelative, raw.rmse, raw.meanRatio);
     if (sceneFile.empty()) return 0;
     const Scene scene = loadScene(sceneFile);
     RenderCli view;
@@ -328,14 +346,16 @@ int main(int argc, char** argv) {
     CLI::App* solveCmd = app.add_subcommand("solve", "View-independent radiosity solve");
     solveCmd->add_option("scene", solve.scene, "Scene JSON file")->required();
     solveCmd->add_option("--out", solve.out, "Output directory (report.json, solution.bin, ...)")->required();
-    solveCmd->add_option("--view-spp", solve.viewSpp, "Samples per pixel of the radiosity picture")->capture_default_str();
+    solveCmd->add_option("--view-spp", solve.viewSpp, "Samples per pixel of the radiosity picture")
+        ->capture_default_str();
     addSolveOptions(solveCmd, solve);
 
     RenderCli render;
     SolveCli renderSolve;
     CLI::App* renderCmd = app.add_subcommand("render", "Render an image of the (solved) scene");
     renderCmd->add_option("scene", render.scene, "Scene JSON file")->required();
-    renderCmd->add_option("--out", render.out, "Output image (.exr or .hdr); a .png preview is written beside it")->required();
+    renderCmd->add_option("--out", render.out, "Output image (.exr or .hdr); a .png preview is written beside it")
+        ->required();
     renderCmd->add_option("--solution", render.solution, "Directory of a previous solve to reuse");
     std::string integratorHelp, sppHelp;
     for (const IntegratorEntry& e : integrators()) {
@@ -345,27 +365,38 @@ int main(int argc, char** argv) {
     renderCmd->add_option("--integrator", render.integrator, integratorHelp)->capture_default_str();
     renderCmd->add_option("--spp", render.spp, cat("Samples per pixel (default: ", sppHelp, ")"))
         ->check(CLI::Range(1, 1 << 20));
-    renderCmd->add_option("--direct-samples", render.gather.directSamples,
-                          "Final gather: emitter samples per camera sample")
-        ->capture_default_str()->check(CLI::Range(1, 4096));
+    renderCmd
+        ->add_option("--direct-samples", render.gather.directSamples, "Final gather: emitter samples per camera sample")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 4096));
     renderCmd->add_option("--gather-rays", render.gather.gatherRays, "Final gather: gather rays per camera sample")
-        ->capture_default_str()->check(CLI::Range(1, 65536));
-    renderCmd->add_option("--close-factor", render.gather.closeFactor,
-                          "Final gather: hits nearer than this many patch radii are shaded one bounce deeper")
-        ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
+        ->capture_default_str()
+        ->check(CLI::Range(1, 65536));
+    renderCmd
+        ->add_option("--close-factor", render.gather.closeFactor,
+                     "Final gather: hits nearer than this many patch radii are shaded one bounce deeper")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 1000.0));
     renderCmd->add_option("--photons", render.photons.photons, "Caustic photons emitted")
-        ->capture_default_str()->check(CLI::Range(int64_t(1), int64_t(1) << 34));
+        ->capture_default_str()
+        ->check(CLI::Range(int64_t(1), int64_t(1) << 34));
     renderCmd->add_option("--photon-k", render.photons.nearest, "Photons per caustic density estimate")
-        ->capture_default_str()->check(CLI::Range(1, 100000));
-    renderCmd->add_option("--photon-precompute", render.photons.precompute,
-                          "Precompute the caustic estimate at every Nth stored photon (0: estimate at every lookup)")
-        ->capture_default_str()->check(CLI::Range(0, 1000000));
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100000));
+    renderCmd
+        ->add_option("--photon-precompute", render.photons.precompute,
+                     "Precompute the caustic estimate at every Nth stored photon (0: estimate at every lookup)")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 1000000));
     renderCmd->add_option("--max-depth", render.gather.maxSpecularDepth, "Mirror and glass bounces per path")
-        ->capture_default_str()->check(CLI::Range(0, 1000));
+        ->capture_default_str()
+        ->check(CLI::Range(0, 1000));
     renderCmd->add_option("--resolution", render.resolution, "WIDTHxHEIGHT, overrides the camera's");
     renderCmd->add_option("--camera", render.camera, "Camera as JSON, overrides the scene's");
-    renderCmd->add_option("--orbit", render.orbit,
-                          "Render N views on a circle around the scene's centre (OUT-000.exr, ...; cameras in OUT-orbit.json)")
+    renderCmd
+        ->add_option(
+            "--orbit", render.orbit,
+            "Render N views on a circle around the scene's centre (OUT-000.exr, ...; cameras in OUT-orbit.json)")
         ->check(CLI::Range(1, 100000));
     renderCmd->add_option("--exposure", render.exposure, "Exposure of the PNG preview, in stops");
     addSolveOptions(renderCmd, renderSolve);
@@ -382,8 +413,9 @@ int main(int argc, char** argv) {
     CLI::App* compareCmd = app.add_subcommand("compare", "Compare an image with a reference (e.g. a path-traced one)");
     compareCmd->add_option("image", compareImage, "Image (.exr or .hdr)")->required();
     compareCmd->add_option("reference", compareReference, "Reference image of the same size")->required();
-    compareCmd->add_option("--scene", compareScene,
-                           "The scene both images show: also compare each region (every object seen, their groups, the caustic)");
+    compareCmd->add_option(
+        "--scene", compareScene,
+        "The scene both images show: also compare each region (every object seen, their groups, the caustic)");
     compareCmd->add_option("--camera", compareCamera, "With --scene: the camera of the images, if not the scene's");
 
     CLI::App* viewCmd = app.add_subcommand("view", "Browse a solved scene interactively");
@@ -397,10 +429,12 @@ int main(int argc, char** argv) {
     viewCmd->add_option("--exposure", viewer.exposureStops, "Exposure, in stops from the automatic one");
     viewCmd->add_option("--screenshot", viewer.screenshot,
                         "Draw --frames frames from the camera, save the last to this PNG and exit");
-    viewCmd->add_option("--frames", viewer.frames, "Frames drawn before --screenshot")->capture_default_str()
+    viewCmd->add_option("--frames", viewer.frames, "Frames drawn before --screenshot")
+        ->capture_default_str()
         ->check(CLI::Range(1, 100000));
-    viewCmd->add_option("--gather-passes", viewer.gatherPasses,
-                        "With --screenshot: save the in-window final gather after this many passes instead")
+    viewCmd
+        ->add_option("--gather-passes", viewer.gatherPasses,
+                     "With --screenshot: save the in-window final gather after this many passes instead")
         ->check(CLI::Range(1, 1 << 20));
     viewCmd->add_flag("--screenshot-window", viewer.wholeWindow,
                       "With --screenshot: save the window as shown, panel included");
@@ -408,16 +442,20 @@ int main(int argc, char** argv) {
 
     bench::BenchOptions benchOptions;
     std::string benchResolution;
-    CLI::App* benchCmd = app.add_subcommand("bench", "Measure the speed-accuracy trade of a scene and this machine's limits");
+    CLI::App* benchCmd =
+        app.add_subcommand("bench", "Measure the speed-accuracy trade of a scene and this machine's limits");
     benchCmd->add_option("scene", benchOptions.scene, "Scene JSON file (with a camera)")->required();
     benchCmd->add_option("--out", benchOptions.out, "Output directory (trade.csv, summary.md, plots)")->required();
     benchCmd->add_flag("--quick", benchOptions.quick, "A one-minute version: fewer, smaller runs");
-    benchCmd->add_option("--only", benchOptions.only,
-                         "Just these sweeps and the defaults (patches, adaptive, hierarchical, spp, path, ...)")
+    benchCmd
+        ->add_option("--only", benchOptions.only,
+                     "Just these sweeps and the defaults (patches, adaptive, hierarchical, spp, path, ...)")
         ->delimiter(',');
-    benchCmd->add_option("--resolution", benchResolution, "WIDTHxHEIGHT of the images compared (default 256 wide, quick 64)");
-    benchCmd->add_option("--reference-spp", benchOptions.referenceSpp,
-                         "Samples per pixel of the path-traced reference (default 4096, quick 1024)")
+    benchCmd->add_option("--resolution", benchResolution,
+                         "WIDTHxHEIGHT of the images compared (default 256 wide, quick 64)");
+    benchCmd
+        ->add_option("--reference-spp", benchOptions.referenceSpp,
+                     "Samples per pixel of the path-traced reference (default 4096, quick 1024)")
         ->check(CLI::Range(1, 1 << 24));
     benchCmd->add_option("--cache", benchOptions.cache, "Folder for cached references (default ~/.cache/penumbra)");
 

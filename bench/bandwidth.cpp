@@ -14,7 +14,8 @@ namespace penumbra::bench {
 namespace {
 
 // Best seconds of `body` over `passes` runs.
-template <typename Body> double bestSeconds(int passes, const Body& body) {
+template <typename Body>
+double bestSeconds(int passes, const Body& body) {
     double best = 1e300;
     for (int p = 0; p < passes; ++p) {
         Timer timer;
@@ -32,12 +33,15 @@ BandwidthLimit measureBandwidth(size_t n, uint64_t seed) {
     out.threads = threadCount();
     out.matrixBytes = double(n) * double(n) * sizeof(float);
     FormFactorMatrix F(n);
-    parallelFor(int64_t(n), [&](int64_t b, int64_t e) {
-        for (int64_t i = b; i < e; ++i) {
-            Rng rng(mixSeed(seed, uint64_t(i)));
-            for (size_t j = 0; j < n; ++j) F(size_t(i), j) = float(rng.uniform() * 1.8 / double(n));
-        }
-    }, 16);
+    parallelFor(
+        int64_t(n),
+        [&](int64_t b, int64_t e) {
+            for (int64_t i = b; i < e; ++i) {
+                Rng rng(mixSeed(seed, uint64_t(i)));
+                for (size_t j = 0; j < n; ++j) F(size_t(i), j) = float(rng.uniform() * 1.8 / double(n));
+            }
+        },
+        16);
     RadiositySystem s;
     s.area.assign(n, 1.0);
     s.reflectance.assign(n, Rgb(0.7, 0.5, 0.3));
@@ -51,7 +55,8 @@ BandwidthLimit measureBandwidth(size_t n, uint64_t seed) {
     auto readRows = [&](int64_t b, int64_t e) {
         // Eigen's sum keeps several vector accumulators: bound by memory, not by add latency.
         double sum = 0;
-        for (int64_t i = b; i < e; ++i) sum += Eigen::Map<const Eigen::ArrayXf>(F.row(size_t(i)), Eigen::Index(n)).sum();
+        for (int64_t i = b; i < e; ++i)
+            sum += Eigen::Map<const Eigen::ArrayXf>(F.row(size_t(i)), Eigen::Index(n)).sum();
         partial[size_t(b) % partial.size()] += sum;
     };
     const double read = bestSeconds(passes, [&] { parallelFor(int64_t(n), readRows, 16); });
@@ -61,9 +66,12 @@ BandwidthLimit measureBandwidth(size_t n, uint64_t seed) {
     // A plain copy into a second matrix (bytes read plus bytes written), on all threads.
     std::vector<float> copy(n * n);
     const double copied = bestSeconds(passes, [&] {
-        parallelFor(int64_t(n), [&](int64_t b, int64_t e) {
-            std::memcpy(copy.data() + size_t(b) * n, F.row(size_t(b)), size_t(e - b) * n * sizeof(float));
-        }, 16);
+        parallelFor(
+            int64_t(n),
+            [&](int64_t b, int64_t e) {
+                std::memcpy(copy.data() + size_t(b) * n, F.row(size_t(b)), size_t(e - b) * n * sizeof(float));
+            },
+            16);
     });
     out.copyGBs = 2 * out.matrixBytes / copied / 1e9;
     std::vector<float>().swap(copy);

@@ -36,20 +36,26 @@ struct SurfaceSampler {
         const auto it = std::lower_bound(cdf.begin(), cdf.end(), rng.uniform());
         return std::min(size_t(it - cdf.begin()), cdf.size() - 1);
     }
-    Vec3 point(size_t i, Rng& rng) const { return samplePatchPoint(patches, i, rng.uniform(), rng.uniform(), rng.uniform()); }
+    Vec3 point(size_t i, Rng& rng) const {
+        return samplePatchPoint(patches, i, rng.uniform(), rng.uniform(), rng.uniform());
+    }
 };
 
 // Rays per second of `trace(begin, end)` over `count` rays split across the threads: the best of
 // three passes (the machine is shared, and the first pass warms the caches).
-template <typename Trace> double raysPerSecond(size_t count, const Trace& trace) {
+template <typename Trace>
+double raysPerSecond(size_t count, const Trace& trace) {
     double best = 0;
     for (int pass = 0; pass < 3; ++pass) {
         Timer timer;
-        parallelFor(int64_t(count / 8), [&](int64_t b, int64_t e) {
-            _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
-            _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
-            trace(size_t(b) * 8, size_t(e) * 8);
-        }, 256);
+        parallelFor(
+            int64_t(count / 8),
+            [&](int64_t b, int64_t e) {
+                _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+                _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+                trace(size_t(b) * 8, size_t(e) * 8);
+            },
+            256);
         best = std::max(best, double(count) / timer.seconds());
     }
     return best;
@@ -71,33 +77,38 @@ EmbreeLimit measureEmbreeLimit(const PatchSet& patches, uint64_t rays, uint64_t 
     // Segments between random points of two different patches, trimmed at both ends as the form
     // factors trim theirs; and cosine rays leaving random points of the front faces.
     std::vector<Segment> segments(count), gathers(count);
-    parallelFor(int64_t(count), [&](int64_t b, int64_t e) {
-        for (int64_t k = b; k < e; ++k) {
-            Rng rng(mixSeed(seed, uint64_t(k), 17));
-            const size_t i = sampler.patch(rng);
-            size_t j = sampler.patch(rng);
-            if (j == i) j = (j + 1) % patches.size();
-            const Vec3 a = sampler.point(i, rng) + 1e-4 * patches.radius[i] * patches.normal[i];
-            const Vec3 c = sampler.point(j, rng) + 1e-4 * patches.radius[j] * patches.normal[j];
-            Segment& s = segments[size_t(k)];
-            for (int d = 0; d < 3; ++d) s.org[d] = float(a[d]), s.dir[d] = float(c[d] - a[d]);
-            // A cosine-distributed direction about the normal (Malley's method).
-            Vec3 t, bt;
-            orthonormalBasis(patches.normal[i], t, bt);
-            const double r = std::sqrt(rng.uniform()), phi = 2 * kPi * rng.uniform();
-            const Vec3 w = r * std::cos(phi) * t + r * std::sin(phi) * bt + std::sqrt(std::max(0.0, 1 - r * r)) * patches.normal[i];
-            Segment& g = gathers[size_t(k)];
-            for (int d = 0; d < 3; ++d) g.org[d] = float(a[d]), g.dir[d] = float(w[d]);
-        }
-    }, 1024);
+    parallelFor(
+        int64_t(count),
+        [&](int64_t b, int64_t e) {
+            for (int64_t k = b; k < e; ++k) {
+                Rng rng(mixSeed(seed, uint64_t(k), 17));
+                const size_t i = sampler.patch(rng);
+                size_t j = sampler.patch(rng);
+                if (j == i) j = (j + 1) % patches.size();
+                const Vec3 a = sampler.point(i, rng) + 1e-4 * patches.radius[i] * patches.normal[i];
+                const Vec3 c = sampler.point(j, rng) + 1e-4 * patches.radius[j] * patches.normal[j];
+                Segment& s = segments[size_t(k)];
+                for (int d = 0; d < 3; ++d) s.org[d] = float(a[d]), s.dir[d] = float(c[d] - a[d]);
+                // A cosine-distributed direction about the normal (Malley's method).
+                Vec3 t, bt;
+                orthonormalBasis(patches.normal[i], t, bt);
+                const double r = std::sqrt(rng.uniform()), phi = 2 * kPi * rng.uniform();
+                const Vec3 w = r * std::cos(phi) * t + r * std::sin(phi) * bt +
+                               std::sqrt(std::max(0.0, 1 - r * r)) * patches.normal[i];
+                Segment& g = gathers[size_t(k)];
+                for (int d = 0; d < 3; ++d) g.org[d] = float(a[d]), g.dir[d] = float(w[d]);
+            }
+        },
+        1024);
 
-    std::vector<uint64_t> blocked(count, 0);   // keeps the results alive, so no query is optimised away
+    std::vector<uint64_t> blocked(count, 0);  // keeps the results alive, so no query is optimised away
     out.occluded1 = raysPerSecond(count, [&](size_t b, size_t e) {
         RTCIntersectContext context;
         rtcInitIntersectContext(&context);
         for (size_t k = b; k < e; ++k) {
             const Segment& s = segments[k];
-            RTCRay ray{s.org[0], s.org[1], s.org[2], 1e-5f, s.dir[0], s.dir[1], s.dir[2], 0.0f, 1 - 1e-5f, 0xFFFFFFFFu, 0, 0};
+            RTCRay ray{s.org[0], s.org[1], s.org[2],  1e-5f,       s.dir[0], s.dir[1],
+                       s.dir[2], 0.0f,     1 - 1e-5f, 0xFFFFFFFFu, 0,        0};
             rtcOccluded1(scene, &context, &ray);
             blocked[k] = ray.tfar < 0;
         }
@@ -126,7 +137,8 @@ EmbreeLimit measureEmbreeLimit(const PatchSet& patches, uint64_t rays, uint64_t 
         for (size_t k = b; k < e; ++k) {
             const Segment& s = gathers[k];
             RTCRayHit rh;
-            rh.ray = RTCRay{s.org[0], s.org[1], s.org[2], 0.0f, s.dir[0], s.dir[1], s.dir[2], 0.0f, 3e38f, 0xFFFFFFFFu, 0, 0};
+            rh.ray = RTCRay{s.org[0], s.org[1], s.org[2], 0.0f,        s.dir[0], s.dir[1],
+                            s.dir[2], 0.0f,     3e38f,    0xFFFFFFFFu, 0,        0};
             rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
             rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
             rtcIntersect1(scene, &context, &rh);

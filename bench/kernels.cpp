@@ -75,7 +75,8 @@ void BM_VisibilityRay(benchmark::State& state) {
     prepareTracingThread();
     for (auto _ : state) {
         const size_t i = rng.next() % p.size(), j = rng.next() % p.size();
-        benchmark::DoNotOptimize(s.rays->occluded(p.centroid[i] + 1e-4 * p.normal[i], p.centroid[j] + 1e-4 * p.normal[j]));
+        benchmark::DoNotOptimize(
+            s.rays->occluded(p.centroid[i] + 1e-4 * p.normal[i], p.centroid[j] + 1e-4 * p.normal[j]));
     }
     state.SetItemsProcessed(int64_t(state.iterations()));
 }
@@ -147,7 +148,8 @@ void BM_GatherPoint(benchmark::State& state) {
         hit.normal = p.normal[i];
         hit.patch = int(i);
         hit.object = p.object[i];
-        hit.material = &sceneNamed("cornell-box.json").materialOf(sceneNamed("cornell-box.json").objects[size_t(p.object[i])]);
+        hit.material =
+            &sceneNamed("cornell-box.json").materialOf(sceneNamed("cornell-box.json").objects[size_t(p.object[i])]);
         benchmark::DoNotOptimize(gather.reflected(hit, rng, 0));
     }
     state.SetItemsProcessed(int64_t(state.iterations()));

@@ -28,9 +28,9 @@ struct BandwidthLimit {
     size_t n = 0;
     double matrixBytes = 0;
     double readGBs = 0, copyGBs = 0;
-    double readGBs1 = 0;   // the read stream on one thread: the yardstick of the sequential Gauss-Seidel
+    double readGBs1 = 0;  // the read stream on one thread: the yardstick of the sequential Gauss-Seidel
     double jacobiGBs = 0, gaussSeidelGBs = 0;
-    double jacobiSeconds = 0, gaussSeidelSeconds = 0;   // one sweep
+    double jacobiSeconds = 0, gaussSeidelSeconds = 0;  // one sweep
     int threads = 0;
 };
 BandwidthLimit measureBandwidth(size_t n, uint64_t seed);

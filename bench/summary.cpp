@@ -1,13 +1,12 @@
 // The files of `penumbra bench`: trade.csv (one line a run), bench.json (limits, thread scaling,
 // targets), summary.md (the tables, for the docs) and the plots through gnuplot.
-#include <nlohmann/json.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <optional>
 
 #include "bench/trade.h"
@@ -37,7 +36,8 @@ std::string percent(double v) { return fixed(100 * v, v < 0.1 ? 2 : 1) + "%"; }
 const Row* cheapest(const std::vector<Row>& rows, const std::string& method, double limit) {
     const Row* best = nullptr;
     for (const Row& r : rows)
-        if ((method.empty() || r.setting.method == method) && r.imageError <= limit && (!best || r.total() < best->total()))
+        if ((method.empty() || r.setting.method == method) && r.imageError <= limit &&
+            (!best || r.total() < best->total()))
             best = &r;
     return best;
 }
@@ -102,11 +102,11 @@ double referenceNoise(const BenchResult& r) {
 
 struct Targets {
     double error = 0.02;
-    const Row* gather = nullptr;   // cheapest final gather at 2%
+    const Row* gather = nullptr;  // cheapest final gather at 2%
     PathTime path;
-    const Row* orbit = nullptr;    // cheapest view of either kind at 2% for 36 views (solve once)
+    const Row* orbit = nullptr;  // cheapest view of either kind at 2% for 36 views (solve once)
     double orbitSeconds = 0, orbitPathSeconds = 0;
-    const Row* view = nullptr;     // the radiosity view of the default solve
+    const Row* view = nullptr;  // the radiosity view of the default solve
 };
 Targets targetsOf(const BenchResult& r) {
     Targets t;
@@ -128,12 +128,14 @@ Targets targetsOf(const BenchResult& r) {
 std::string settingText(const Setting& s) {
     if (s.method == "path") return cat(s.spp, " spp");
     std::string t = s.solver == "hierarchical" ? cat("hierarchical, finest as ", s.patches, " patches")
-                    : s.refine > 0                ? cat("adaptive from ", s.patches, " patches to ", s.refine, ", at most ", s.refineBudget)
-                                                  : cat(s.patches, " patches");
+                    : s.refine > 0
+                        ? cat("adaptive from ", s.patches, " patches to ", s.refine, ", at most ", s.refineBudget)
+                        : cat(s.patches, " patches");
     if (s.visibilityRays != FormFactorSettings{}.visibilityRays) t += cat(", ", s.visibilityRays, " vis. rays");
     if (s.ffTolerance != CubatureSettings{}.tolerance) t += cat(", FF tol ", s.ffTolerance);
     if (s.tolerance != SolverSettings{}.tolerance) t += cat(", tol ", s.tolerance);
-    if (s.specularRays != SpecularSettings{}.raysPerPatch && s.method != "path") t += cat(", ", s.specularRays, " specular rays");
+    if (s.specularRays != SpecularSettings{}.raysPerPatch && s.method != "path")
+        t += cat(", ", s.specularRays, " specular rays");
     t += cat(", ", s.spp, " spp");
     if (s.method == "final-gather") {
         t += cat(", ", s.gatherRays, " gather rays");
@@ -157,7 +159,8 @@ void markPareto(std::vector<Row>& rows) {
 
 std::string tradeCsv(const std::vector<Row>& rows) {
     std::string csv =
-        "method,sweep,patches_asked,patches,visibility_rays,ff_tolerance,tolerance,specular_rays,photons,photon_k,gather_rays,spp,"
+        "method,sweep,patches_asked,patches,visibility_rays,ff_tolerance,tolerance,specular_rays,photons,photon_k,"
+        "gather_rays,spp,"
         "seconds_meshing,seconds_form_factors,seconds_specular,seconds_solve,seconds_photons,seconds_render,"
         "seconds_total,peak_memory_mib,matrix_mib,rays,pooled_l1_blurred,per_pixel_relative_blurred,rmse,"
         "object_error_max,object_error_mean,pareto\n";
@@ -165,14 +168,15 @@ std::string tradeCsv(const std::vector<Row>& rows) {
     for (const Row& r : rows) {
         const Setting& s = r.setting;
         const bool path = s.method == "path";
-        csv += cat(s.method, ",", s.sweep, ",", path ? "" : cat(s.patches), ",", r.patchesMade, ",",
-                   path ? "" : cat(s.visibilityRays), ",", path ? "" : cat(s.ffTolerance), ",", path ? "" : cat(s.tolerance), ",",
-                   path ? "" : cat(s.specularRays), ",",
-                   s.method == "final-gather" ? cat(s.photons) : "", ",", s.method == "final-gather" ? cat(s.photonK) : "",
-                   ",", s.method == "final-gather" ? cat(s.gatherRays) : "", ",", s.spp, ",", r.meshing, ",",
-                   r.formFactors, ",", r.specular, ",", r.solve, ",", r.photons, ",", r.render, ",", r.total(), ",",
-                   r.peakMiB, ",", r.matrixMiB, ",", r.rays, ",", r.imageError, ",", r.imageErrorRaw, ",", r.rmse, ",",
-                   opt(r.objectErrorMax), ",", opt(r.objectErrorMean), ",", r.pareto ? 1 : 0, "\n");
+        csv +=
+            cat(s.method, ",", s.sweep, ",", path ? "" : cat(s.patches), ",", r.patchesMade, ",",
+                path ? "" : cat(s.visibilityRays), ",", path ? "" : cat(s.ffTolerance), ",",
+                path ? "" : cat(s.tolerance), ",", path ? "" : cat(s.specularRays), ",",
+                s.method == "final-gather" ? cat(s.photons) : "", ",", s.method == "final-gather" ? cat(s.photonK) : "",
+                ",", s.method == "final-gather" ? cat(s.gatherRays) : "", ",", s.spp, ",", r.meshing, ",",
+                r.formFactors, ",", r.specular, ",", r.solve, ",", r.photons, ",", r.render, ",", r.total(), ",",
+                r.peakMiB, ",", r.matrixMiB, ",", r.rays, ",", r.imageError, ",", r.imageErrorRaw, ",", r.rmse, ",",
+                opt(r.objectErrorMax), ",", opt(r.objectErrorMean), ",", r.pareto ? 1 : 0, "\n");
     }
     return csv;
 }
@@ -199,22 +203,23 @@ double uniformPatchesFor(const std::vector<const Row*>& uniform, double error) {
             return std::exp(std::log(double(a.patchesMade)) + t * std::log(double(b.patchesMade) / a.patchesMade));
         }
     }
-    return -1;   // outside the uniform sweep
+    return -1;  // outside the uniform sweep
 }
 
 std::string meshesMarkdown(const std::vector<Row>& rows) {
     const auto uniform = meshRows(rows, "uniform");
-    std::string md = "\n## Model only what the light needs: uniform, adaptive and hierarchical meshes\n\n"
-                     "Radiosity views. *Uniform patches for this error*: the uniform sweep interpolated on log-log "
-                     "axes; the ratio is how many times fewer patches (elements) this mesh needed.\n\n"
-                     "![error against patches](meshes.png) ![storage against patches](storage.png)\n\n"
-                     "| mesh | setting | patches / leaves | seconds | error | uniform patches for this error | ratio | "
-                     "storage MiB | links |\n|---|---|---|---|---|---|---|---|---|\n";
+    std::string md =
+        "\n## Model only what the light needs: uniform, adaptive and hierarchical meshes\n\n"
+        "Radiosity views. *Uniform patches for this error*: the uniform sweep interpolated on log-log "
+        "axes; the ratio is how many times fewer patches (elements) this mesh needed.\n\n"
+        "![error against patches](meshes.png) ![storage against patches](storage.png)\n\n"
+        "| mesh | setting | patches / leaves | seconds | error | uniform patches for this error | ratio | "
+        "storage MiB | links |\n|---|---|---|---|---|---|---|---|---|\n";
     for (const char* kind : {"uniform", "adaptive", "hierarchical"})
         for (const Row* x : meshRows(rows, kind)) {
             const double u = std::string(kind) == "uniform" ? -1 : uniformPatchesFor(uniform, x->imageError);
-            md += cat("| ", kind, " | ", settingText(x->setting), " | ", x->patchesMade, " | ", fixed(x->total(), 2), " | ",
-                      percent(x->imageError), " | ", u > 0 ? cat(std::lround(u)) : "-", " | ",
+            md += cat("| ", kind, " | ", settingText(x->setting), " | ", x->patchesMade, " | ", fixed(x->total(), 2),
+                      " | ", percent(x->imageError), " | ", u > 0 ? cat(std::lround(u)) : "-", " | ",
                       u > 0 ? cat(fixed(u / x->patchesMade, 2), "x") : "-", " | ", fixed(x->storageMiB, 2), " | ",
                       x->links ? cat(x->links) : "-", " |\n");
         }
@@ -222,13 +227,17 @@ std::string meshesMarkdown(const std::vector<Row>& rows) {
 }
 
 std::string summaryMarkdown(const BenchResult& r) {
-    std::string md = cat("# Bench: ", r.scene, "\n\nMachine: ", r.machine, ". Images ", r.width, "x", r.height,
-                         "; reference: the path tracer at ", r.referenceSpp, " spp",
-                         r.referenceSeconds > 0 ? cat(" (", fixed(r.referenceSeconds, 1), " s)") : std::string(" (from the cache)"),
-                         ". Error: pooled L1 after a 5x5 box blur, sum |blur(image) - blur(reference)| / sum blur(reference) over all pixels and channels. Seconds: wall "
-                         "seconds from the scene file to the image.\n\n![error against time](error-time.png)\n"
-                         "![cost against patches](cost-patches.png)\n\n");
-    md += "## Settings that reach 10%, 3% and 1% error\n\n| error | method | cheapest setting that reaches it | seconds | error |\n|---|---|---|---|---|\n";
+    std::string md =
+        cat("# Bench: ", r.scene, "\n\nMachine: ", r.machine, ". Images ", r.width, "x", r.height,
+            "; reference: the path tracer at ", r.referenceSpp, " spp",
+            r.referenceSeconds > 0 ? cat(" (", fixed(r.referenceSeconds, 1), " s)") : std::string(" (from the cache)"),
+            ". Error: pooled L1 after a 5x5 box blur, sum |blur(image) - blur(reference)| / sum blur(reference) over "
+            "all pixels and channels. Seconds: wall "
+            "seconds from the scene file to the image.\n\n![error against time](error-time.png)\n"
+            "![cost against patches](cost-patches.png)\n\n");
+    md +=
+        "## Settings that reach 10%, 3% and 1% error\n\n| error | method | cheapest setting that reaches it | seconds "
+        "| error |\n|---|---|---|---|---|\n";
     for (double limit : {0.10, 0.03, 0.01})
         for (const char* method : {"final-gather", "radiosity", "path"}) {
             const Row* row = cheapest(r.rows, method, limit);
@@ -256,12 +265,13 @@ std::string summaryMarkdown(const BenchResult& r) {
     if (const double noise = referenceNoise(r); noise > 0)
         md += cat("The reference's own noise is about ", percent(noise),
                   " (the error of the path tracer's most sampled run, which has noise independent of the reference's, "
-                  "taken apart by the 1/samples law of variances): errors near it are at the floor this reference can see.\n\n");
+                  "taken apart by the 1/samples law of variances): errors near it are at the floor this reference can "
+                  "see.\n\n");
     if (t.gather && t.path.known)
         md += cat("- One image at 2%: radiosity + final gather ", fixed(t.gather->total(), 2), " s (",
                   settingText(t.gather->setting), ", error ", percent(t.gather->imageError), "); path tracer ",
-                  fixed(t.path.seconds, 1), " s (", t.path.how,
-                  "): **", fixed(t.path.seconds / t.gather->total(), 1), "x sooner**.\n");
+                  fixed(t.path.seconds, 1), " s (", t.path.how, "): **", fixed(t.path.seconds / t.gather->total(), 1),
+                  "x sooner**.\n");
     else
         md += "- One image at 2%: the final gather did not reach 2% in this sweep.\n";
     if (t.orbit && t.path.known)
@@ -276,9 +286,10 @@ std::string summaryMarkdown(const BenchResult& r) {
 
     const EmbreeLimit& e = r.embree;
     const BandwidthLimit& b = r.bandwidth;
-    md += cat("\n## Close to the limit\n\nEmbree alone on the same patches and ", e.threads, " threads (", e.rays,
-              " rays each, made before the clock starts); memory on a ", b.n, "^2 float matrix (",
-              fixed(b.matrixBytes / (1 << 20), 0), " MiB).\n\n| stage | measured | limit | ratio |\n|---|---|---|---|\n");
+    md +=
+        cat("\n## Close to the limit\n\nEmbree alone on the same patches and ", e.threads, " threads (", e.rays,
+            " rays each, made before the clock starts); memory on a ", b.n, "^2 float matrix (",
+            fixed(b.matrixBytes / (1 << 20), 0), " MiB).\n\n| stage | measured | limit | ratio |\n|---|---|---|---|\n");
     if (r.formFactorSeconds > 0) {
         const double rate = r.formFactorRays / r.formFactorSeconds;
         md += cat("| form factors (rays / stage seconds) | ", fixed(rate / 1e6, 2), " M rays/s | Embree occlusion ",
@@ -293,22 +304,30 @@ std::string summaryMarkdown(const BenchResult& r) {
                   percent(r.gatherRays / r.gatherSeconds / e.intersect1), " |\n");
     md += cat("| Embree 8-wide packets against single rays (occlusion) | ", fixed(e.occluded8 / 1e6, 2), " M rays/s | ",
               fixed(e.occluded1 / 1e6, 2), " M rays/s | ", fixed(e.occluded8 / e.occluded1, 2), "x |\n");
-    md += cat("| Jacobi sweep (", b.threads, " threads) | ", fixed(b.jacobiGBs, 1), " GB/s (", fixed(b.jacobiSeconds * 1e3, 1),
-              " ms) | read stream ", fixed(b.readGBs, 1), " GB/s | ", percent(b.jacobiGBs / b.readGBs), " |\n");
-    md += cat("| Jacobi sweep against a copy | | copy ", fixed(b.copyGBs, 1), " GB/s | ", percent(b.jacobiGBs / b.copyGBs), " |\n");
+    md += cat("| Jacobi sweep (", b.threads, " threads) | ", fixed(b.jacobiGBs, 1), " GB/s (",
+              fixed(b.jacobiSeconds * 1e3, 1), " ms) | read stream ", fixed(b.readGBs, 1), " GB/s | ",
+              percent(b.jacobiGBs / b.readGBs), " |\n");
+    md += cat("| Jacobi sweep against a copy | | copy ", fixed(b.copyGBs, 1), " GB/s | ",
+              percent(b.jacobiGBs / b.copyGBs), " |\n");
     md += cat("| Gauss-Seidel sweep (1 thread, sequential) | ", fixed(b.gaussSeidelGBs, 1), " GB/s (",
               fixed(b.gaussSeidelSeconds * 1e3, 1), " ms) | read stream on 1 thread ", fixed(b.readGBs1, 1), " GB/s | ",
               percent(b.gaussSeidelGBs / b.readGBs1), " |\n");
 
     md += meshesMarkdown(r.rows);
 
-    md += "\n## Threads\n\n| stage | size | 1 thread (s) | all threads (s) | speed-up | results identical |\n|---|---|---|---|---|---|\n";
+    md +=
+        "\n## Threads\n\n| stage | size | 1 thread (s) | all threads (s) | speed-up | results identical "
+        "|\n|---|---|---|---|---|---|\n";
     for (const ThreadScaling& s : r.threads)
-        md += cat("| ", s.stage, " | ", s.size, " | ", fixed(s.oneThread, 2), " | ", fixed(s.allThreads, 2), " (", s.threads,
-                  ") | ", fixed(s.oneThread / s.allThreads, 2), "x | ", s.identical ? "yes" : "**no**", " |\n");
+        md += cat("| ", s.stage, " | ", s.size, " | ", fixed(s.oneThread, 2), " | ", fixed(s.allThreads, 2), " (",
+                  s.threads, ") | ", fixed(s.oneThread / s.allThreads, 2), "x | ", s.identical ? "yes" : "**no**",
+                  " |\n");
 
-    md += "\n## Runs\n\n| method | swept | setting | patches | mesh + FF + specular + solve (s) | photons (s) | render (s) | "
-          "total (s) | peak MiB | rays | error | object error (max) | Pareto |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    md +=
+        "\n## Runs\n\n| method | swept | setting | patches | mesh + FF + specular + solve (s) | photons (s) | render "
+        "(s) | "
+        "total (s) | peak MiB | rays | error | object error (max) | Pareto "
+        "|\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const Row& x : r.rows)
         md += cat("| ", methodTitle(x.setting.method), " | ", x.setting.sweep, " | ", settingText(x.setting), " | ",
                   x.patchesMade, " | ", fixed(x.solveTotal(), 2), " | ", fixed(x.photons, 2), " | ", fixed(x.render, 2),
@@ -325,25 +344,39 @@ std::string benchJson(const BenchResult& r) {
     j["machine"] = r.machine;
     j["resolution"] = {r.width, r.height};
     j["reference_spp"] = r.referenceSpp;
-    j["embree"] = {{"threads", r.embree.threads}, {"rays", r.embree.rays}, {"occluded1_rays_per_s", r.embree.occluded1},
-                   {"occluded8_rays_per_s", r.embree.occluded8}, {"intersect1_rays_per_s", r.embree.intersect1}};
+    j["embree"] = {{"threads", r.embree.threads},
+                   {"rays", r.embree.rays},
+                   {"occluded1_rays_per_s", r.embree.occluded1},
+                   {"occluded8_rays_per_s", r.embree.occluded8},
+                   {"intersect1_rays_per_s", r.embree.intersect1}};
     const BandwidthLimit& b = r.bandwidth;
-    j["bandwidth"] = {{"n", b.n}, {"threads", b.threads}, {"read_gb_per_s", b.readGBs}, {"read_gb_per_s_one_thread", b.readGBs1}, {"copy_gb_per_s", b.copyGBs},
-                      {"jacobi_gb_per_s", b.jacobiGBs}, {"gauss_seidel_gb_per_s", b.gaussSeidelGBs},
+    j["bandwidth"] = {{"n", b.n},
+                      {"threads", b.threads},
+                      {"read_gb_per_s", b.readGBs},
+                      {"read_gb_per_s_one_thread", b.readGBs1},
+                      {"copy_gb_per_s", b.copyGBs},
+                      {"jacobi_gb_per_s", b.jacobiGBs},
+                      {"gauss_seidel_gb_per_s", b.gaussSeidelGBs},
                       {"jacobi_over_read", b.jacobiGBs / b.readGBs}};
     if (r.formFactorSeconds > 0)
-        j["form_factors"] = {{"rays", r.formFactorRays}, {"seconds", r.formFactorSeconds},
+        j["form_factors"] = {{"rays", r.formFactorRays},
+                             {"seconds", r.formFactorSeconds},
                              {"rays_per_s", r.formFactorRays / r.formFactorSeconds},
                              {"over_embree", r.formFactorRays / r.formFactorSeconds / r.embree.occluded1}};
     if (r.gatherSeconds > 0)
-        j["final_gather"] = {{"rays", r.gatherRays}, {"seconds", r.gatherSeconds},
+        j["final_gather"] = {{"rays", r.gatherRays},
+                             {"seconds", r.gatherSeconds},
                              {"rays_per_s", r.gatherRays / r.gatherSeconds},
                              {"over_embree", r.gatherRays / r.gatherSeconds / r.embree.intersect1}};
     Json threads = Json::array();
     for (const ThreadScaling& s : r.threads)
-        threads.push_back({{"stage", s.stage}, {"size", s.size}, {"one_thread_s", s.oneThread},
-                           {"all_threads_s", s.allThreads}, {"threads", s.threads},
-                           {"speedup", s.oneThread / s.allThreads}, {"identical", s.identical}});
+        threads.push_back({{"stage", s.stage},
+                           {"size", s.size},
+                           {"one_thread_s", s.oneThread},
+                           {"all_threads_s", s.allThreads},
+                           {"threads", s.threads},
+                           {"speedup", s.oneThread / s.allThreads},
+                           {"identical", s.identical}});
     j["threads"] = threads;
     Json targets;
     targets["error"] = t.error;
@@ -372,15 +405,18 @@ bool writePlots(const BenchResult& r, const std::string& dir) {
         return text;
     };
     for (const char* method : {"final-gather", "radiosity", "path"})
-        writeFileAtomic((data / cat(method, ".dat")).string(), points([&](const Row& x) { return x.setting.method == method; }));
+        writeFileAtomic((data / cat(method, ".dat")).string(),
+                        points([&](const Row& x) { return x.setting.method == method; }));
     writeFileAtomic((data / "pareto.dat").string(), points([](const Row& x) { return x.pareto; }));
     // The cost of the solve against the patch count: the radiosity runs of the patch sweep.
     std::vector<const Row*> solves;
     for (const Row& x : r.rows)
-        if (x.setting.method == "radiosity" && (x.setting.sweep == "patches" || x.setting.sweep == "default")) solves.push_back(&x);
+        if (x.setting.method == "radiosity" && (x.setting.sweep == "patches" || x.setting.sweep == "default"))
+            solves.push_back(&x);
     std::sort(solves.begin(), solves.end(), [](const Row* a, const Row* b) { return a->patchesMade < b->patchesMade; });
     std::string cost = "# patches seconds_form_factors seconds_solve peak_memory_mib matrix_mib\n";
-    for (const Row* x : solves) cost += cat(x->patchesMade, " ", x->formFactors, " ", x->solve, " ", x->peakMiB, " ", x->matrixMiB, "\n");
+    for (const Row* x : solves)
+        cost += cat(x->patchesMade, " ", x->formFactors, " ", x->solve, " ", x->peakMiB, " ", x->matrixMiB, "\n");
     writeFileAtomic((data / "cost.dat").string(), cost);
     for (const char* kind : {"uniform", "adaptive", "hierarchical"}) {
         std::string text = "# patches seconds_total pooled_l1_blurred storage_mib links\n";
@@ -396,39 +432,61 @@ bool writePlots(const BenchResult& r, const std::string& dir) {
         "set terminal pngcairo size 960,640 enhanced font 'sans,11'\n"
         "set output 'error-time.png'\n"
         "set logscale xy\nset grid\nset key top right box opaque\n"
-        "set xlabel 'wall seconds, scene file to image (", r.machine, ")'\n"
+        "set xlabel 'wall seconds, scene file to image (",
+        r.machine,
+        ")'\n"
         "set ylabel 'pooled L1 after a 5x5 blur'\n"
         "set format y '%g'\n"
-        "set title \"", r.scene, ": error against time at ", r.width, "x", r.height, " (reference: path tracer, ",
-        r.referenceSpp, " spp)\" noenhanced\n",
-        "plot 'plot-data/final-gather.dat' using 1:2 with points pt 7 ps 1.2 lc rgb '#d95f02' title 'radiosity + final gather', \\\n"
-        "     'plot-data/radiosity.dat' using 1:2 with points pt 5 ps 1.0 lc rgb '#1b9e77' title 'radiosity alone', \\\n"
-        "     'plot-data/path.dat' using 1:2 with linespoints pt 9 ps 1.2 lw 1.5 lc rgb '#7570b3' title 'path tracing', \\\n"
-        "     'plot-data/pareto.dat' using 1:2 with steps lw 2.5 dt 2 lc rgb 'black' title 'Pareto front (all methods)', \\\n"
+        "set title \"",
+        r.scene, ": error against time at ", r.width, "x", r.height, " (reference: path tracer, ", r.referenceSpp,
+        " spp)\" noenhanced\n",
+        "plot 'plot-data/final-gather.dat' using 1:2 with points pt 7 ps 1.2 lc rgb '#d95f02' title 'radiosity + final "
+        "gather', \\\n"
+        "     'plot-data/radiosity.dat' using 1:2 with points pt 5 ps 1.0 lc rgb '#1b9e77' title 'radiosity alone', "
+        "\\\n"
+        "     'plot-data/path.dat' using 1:2 with linespoints pt 9 ps 1.2 lw 1.5 lc rgb '#7570b3' title 'path "
+        "tracing', \\\n"
+        "     'plot-data/pareto.dat' using 1:2 with steps lw 2.5 dt 2 lc rgb 'black' title 'Pareto front (all "
+        "methods)', \\\n"
         "     'plot-data/pareto.dat' using 1:2 with points pt 6 ps 2 lw 1.5 lc rgb 'black' notitle\n"
         "set output 'cost-patches.png'\n"
-        "set title \"", r.scene, ": cost of the matrix solve against the patch count\" noenhanced\n"
+        "set title \"",
+        r.scene,
+        ": cost of the matrix solve against the patch count\" noenhanced\n"
         "set xlabel 'patches'\nset ylabel 'wall seconds'\nset y2label 'MiB'\n"
         "set logscale y2\nset y2tics\nset ytics nomirror\nset key bottom right box opaque\n"
         "plot 'plot-data/cost.dat' using 1:2 with linespoints pt 7 lw 2 lc rgb '#d95f02' title 'form factors (s)', \\\n"
         "     'plot-data/cost.dat' using 1:3 with linespoints pt 5 lw 2 lc rgb '#1b9e77' title 'solve (s)', \\\n"
-        "     'plot-data/cost.dat' using 1:4 axes x1y2 with linespoints pt 9 lw 2 lc rgb '#7570b3' title 'peak memory (MiB, right)', \\\n"
-        "     'plot-data/cost.dat' using 1:5 axes x1y2 with linespoints pt 4 dt 3 lc rgb '#e7298a' title 'matrix n^2 x 4 bytes (MiB, right)', \\\n"
-        "     [x=50:", nMax * 1.5, "] ", c, " * x**2 with lines dt 2 lc rgb 'gray40' title 'n^2 through the largest form-factor time'\n"
+        "     'plot-data/cost.dat' using 1:4 axes x1y2 with linespoints pt 9 lw 2 lc rgb '#7570b3' title 'peak memory "
+        "(MiB, right)', \\\n"
+        "     'plot-data/cost.dat' using 1:5 axes x1y2 with linespoints pt 4 dt 3 lc rgb '#e7298a' title 'matrix n^2 x "
+        "4 bytes (MiB, right)', \\\n"
+        "     [x=50:",
+        nMax * 1.5, "] ", c,
+        " * x**2 with lines dt 2 lc rgb 'gray40' title 'n^2 through the largest form-factor time'\n"
         "unset y2label\nunset y2tics\nunset logscale y2\nset ytics mirror\n"
         "set output 'meshes.png'\n"
-        "set title \"", r.scene, ": radiosity view error against patches (", r.machine, ")\" noenhanced\n"
+        "set title \"",
+        r.scene, ": radiosity view error against patches (", r.machine,
+        ")\" noenhanced\n"
         "set logscale xy\nset xlabel 'patches (hierarchy: leaves)'\nset ylabel 'pooled L1 after a 5x5 blur'\n"
         "set key top right box opaque\n"
         "plot 'plot-data/mesh-uniform.dat' using 1:3 with linespoints pt 7 lw 2 lc rgb '#7570b3' title 'uniform', \\\n"
-        "     'plot-data/mesh-adaptive.dat' using 1:3 with linespoints pt 5 lw 2 lc rgb '#1b9e77' title 'adaptive (--refine)', \\\n"
-        "     'plot-data/mesh-hierarchical.dat' using 1:3 with linespoints pt 9 lw 2 lc rgb '#d95f02' title 'hierarchical'\n"
+        "     'plot-data/mesh-adaptive.dat' using 1:3 with linespoints pt 5 lw 2 lc rgb '#1b9e77' title 'adaptive "
+        "(--refine)', \\\n"
+        "     'plot-data/mesh-hierarchical.dat' using 1:3 with linespoints pt 9 lw 2 lc rgb '#d95f02' title "
+        "'hierarchical'\n"
         "set output 'storage.png'\n"
-        "set title \"", r.scene, ": storage of the light transport against patches\" noenhanced\n"
+        "set title \"",
+        r.scene,
+        ": storage of the light transport against patches\" noenhanced\n"
         "set ylabel 'MiB (links: count)'\nset key top left box opaque\n"
-        "plot 'plot-data/mesh-uniform.dat' using 1:4 with linespoints pt 7 lw 2 lc rgb '#7570b3' title 'matrix (MiB)', \\\n"
-        "     'plot-data/mesh-hierarchical.dat' using 1:4 with linespoints pt 9 lw 2 lc rgb '#d95f02' title 'hierarchy: elements + links (MiB)', \\\n"
-        "     'plot-data/mesh-hierarchical.dat' using 1:($5/1e6) with linespoints pt 6 dt 2 lw 2 lc rgb '#e7298a' title 'hierarchy: links (millions)', \\\n"
+        "plot 'plot-data/mesh-uniform.dat' using 1:4 with linespoints pt 7 lw 2 lc rgb '#7570b3' title 'matrix (MiB)', "
+        "\\\n"
+        "     'plot-data/mesh-hierarchical.dat' using 1:4 with linespoints pt 9 lw 2 lc rgb '#d95f02' title "
+        "'hierarchy: elements + links (MiB)', \\\n"
+        "     'plot-data/mesh-hierarchical.dat' using 1:($5/1e6) with linespoints pt 6 dt 2 lw 2 lc rgb '#e7298a' "
+        "title 'hierarchy: links (millions)', \\\n"
         "     [x=100:300000] 4*x**2/2**20 with lines dt 3 lc rgb 'gray40' title 'n^2 floats (MiB)'\n");
     writeFileAtomic((d / "plots.gp").string(), script);
     if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) {

@@ -31,7 +31,6 @@
 namespace penumbra::bench {
 namespace {
 
-
 // The settings every sweep starts from: the command line's defaults (quick: smaller).
 struct Baseline {
     int patches = MeshingOptions{}.targetPatches;
@@ -42,7 +41,7 @@ struct Baseline {
     int64_t photons = PhotonSettings{}.photons;
     int photonK = PhotonSettings{}.nearest;
     int gatherRays = GatherSettings{}.gatherRays;
-    int spp = 16, radiositySpp = 4;   // render's defaults
+    int spp = 16, radiositySpp = 4;  // render's defaults
 };
 
 Baseline baselineFor(bool quick) {
@@ -56,7 +55,16 @@ Baseline baselineFor(bool quick) {
 }
 
 Setting baseSetting(const Baseline& b, const std::string& method, const std::string& sweep) {
-    return {method, sweep, b.patches, b.visibilityRays, b.ffTolerance, b.tolerance, b.specularRays, b.photons, b.photonK, b.gatherRays,
+    return {method,
+            sweep,
+            b.patches,
+            b.visibilityRays,
+            b.ffTolerance,
+            b.tolerance,
+            b.specularRays,
+            b.photons,
+            b.photonK,
+            b.gatherRays,
             method == "radiosity" ? b.radiositySpp : b.spp};
 }
 
@@ -81,16 +89,19 @@ std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b)
     vary(plan, b, both, "default", Ints{0}, [](Setting&, int) {});
     vary(plan, b, both, "patches", quick ? Ints{250, 1000} : Ints{250, 500, 1000, 2000, 4000, 8000, 16000},
          [](Setting& s, int v) { s.patches = v; });
-    vary(plan, b, gather, "visibility-rays", quick ? Ints{1} : Ints{1, 16}, [](Setting& s, int v) { s.visibilityRays = v; });
+    vary(plan, b, gather, "visibility-rays", quick ? Ints{1} : Ints{1, 16},
+         [](Setting& s, int v) { s.visibilityRays = v; });
     vary(plan, b, both, "ff-tolerance", quick ? std::vector<double>{1e-3} : std::vector<double>{1e-3, 1e-4},
          [](Setting& s, double v) { s.ffTolerance = v; });
     vary(plan, b, both, "tolerance", quick ? std::vector<double>{1e-2} : std::vector<double>{1e-1, 1e-2, 1e-3, 1e-4},
          [](Setting& s, double v) { s.tolerance = v; });
-    if (scene.hasSpecular()) {   // photons matter only where there are mirrors or glass
-        vary(plan, b, gather, "photons", quick ? std::vector<int64_t>{50000} : std::vector<int64_t>{10000, 100000, 4000000},
+    if (scene.hasSpecular()) {  // photons matter only where there are mirrors or glass
+        vary(plan, b, gather, "photons",
+             quick ? std::vector<int64_t>{50000} : std::vector<int64_t>{10000, 100000, 4000000},
              [](Setting& s, int64_t v) { s.photons = v; });
         vary(plan, b, gather, "photon-k", quick ? Ints{25} : Ints{25, 400}, [](Setting& s, int v) { s.photonK = v; });
-        vary(plan, b, gather, "specular-rays", quick ? Ints{512} : Ints{512, 16384}, [](Setting& s, int v) { s.specularRays = v; });
+        vary(plan, b, gather, "specular-rays", quick ? Ints{512} : Ints{512, 16384},
+             [](Setting& s, int v) { s.specularRays = v; });
     }
     vary(plan, b, gather, "gather-rays", quick ? Ints{4} : Ints{4, 64}, [](Setting& s, int v) { s.gatherRays = v; });
     vary(plan, b, gather, "spp", quick ? Ints{1} : Ints{1, 4, 8, 64}, [](Setting& s, int v) { s.spp = v; });
@@ -105,9 +116,14 @@ std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b)
     const int sr = b.specularRays;
     vary(plan, b, gather, "combined",
          quick ? std::vector<Combo>{{250, 1, 4, 1e-3, 512}}
-               : std::vector<Combo>{{500, 4, 8, 1e-3, 1024}, {1000, 4, 8, 1e-3, 1024}, {1000, 8, 4, 1e-3, 1024},
-                                    {1000, 8, 8, 1e-3, 1024}, {1000, 16, 4, 1e-3, 1024}, {1000, 8, 16, 1e-3, sr},
-                                    {2000, 16, 16, 1e-4, sr}, {8000, 64, 32, 1e-5, sr}},
+               : std::vector<Combo>{{500, 4, 8, 1e-3, 1024},
+                                    {1000, 4, 8, 1e-3, 1024},
+                                    {1000, 8, 4, 1e-3, 1024},
+                                    {1000, 8, 8, 1e-3, 1024},
+                                    {1000, 16, 4, 1e-3, 1024},
+                                    {1000, 8, 16, 1e-3, sr},
+                                    {2000, 16, 16, 1e-4, sr},
+                                    {8000, 64, 32, 1e-5, sr}},
          [](Setting& s, const Combo& c) {
              s.patches = c.patches, s.spp = c.spp, s.gatherRays = c.gatherRays, s.ffTolerance = c.ffTolerance;
              s.specularRays = c.specularRays;
@@ -127,9 +143,10 @@ std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b)
     if (!scene.hasSpecular())
         vary(plan, b, {"radiosity"}, "hierarchical", quick ? Ints{1000} : Ints{1000, 4000, 16000, 64000, 256000},
              [](Setting& s, int v) { s.patches = v, s.solver = "hierarchical"; });
-    if (!scene.hasSpecular())   // no specular transport to trade: every run shares the solves
+    if (!scene.hasSpecular())  // no specular transport to trade: every run shares the solves
         for (Setting& s : plan) s.specularRays = b.specularRays;
-    vary(plan, b, {"path"}, "spp", quick ? Ints{4, 16, 64} : Ints{4, 16, 64, 256, 1024, 2048}, [](Setting& s, int v) { s.spp = v; });
+    vary(plan, b, {"path"}, "spp", quick ? Ints{4, 16, 64} : Ints{4, 16, 64, 256, 1024, 2048},
+         [](Setting& s, int v) { s.spp = v; });
     return plan;
 }
 
@@ -143,8 +160,8 @@ std::string machineDescription() {
         }
     const double gib = double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE)) / double(1ull << 30);
     std::ostringstream out;
-    out << sysconf(_SC_NPROCESSORS_ONLN) << " cores, " << int(gib + 0.5) << " GiB, " << model << ", "
-        << threadCount() << " threads";
+    out << sysconf(_SC_NPROCESSORS_ONLN) << " cores, " << int(gib + 0.5) << " GiB, " << model << ", " << threadCount()
+        << " threads";
     return out.str();
 }
 
@@ -162,7 +179,7 @@ struct SolveRecord {
     std::shared_ptr<RayScene> rays;
     double meshing = 0, formFactors = 0, specular = 0, solve = 0, peakMiB = 0, matrixMiB = 0, storageMiB = 0;
     uint64_t rayCount = 0, formFactorRays = 0, links = 0;
-    std::vector<Rgb> objectMean;   // area-weighted mean B per object
+    std::vector<Rgb> objectMean;  // area-weighted mean B per object
 };
 
 // Area of each scene object, m^2, as meshed.
@@ -205,7 +222,8 @@ public:
 
 private:
     // Runs `f` with the stages' own logs and progress bars silenced (the bench draws its own).
-    template <typename F> auto quietly(const F& f) {
+    template <typename F>
+    auto quietly(const F& f) {
         setLogLevel(userLevel_ == LogLevel::Debug ? LogLevel::Debug : std::max(userLevel_, LogLevel::Warning));
         struct Restore {
             LogLevel level;
@@ -263,7 +281,9 @@ const Image& Bench::reference(BenchResult& result) {
     logInfo("bench: rendering the path-traced reference (", result.referenceSpp, " spp at ", cam.width, "x", cam.height,
             "), cached in ", path);
     Timer timer;
-    reference_ = quietly([&] { return renderPath(*pathTracer_, cam, result.referenceSpp, streamSeed(options_.seed, Stream::BenchReference)); });
+    reference_ = quietly([&] {
+        return renderPath(*pathTracer_, cam, result.referenceSpp, streamSeed(options_.seed, Stream::BenchReference));
+    });
     result.referenceSeconds = timer.seconds();
     ensureDirectory(dir);
     writeLinearImage(reference_, path);
@@ -271,13 +291,15 @@ const Image& Bench::reference(BenchResult& result) {
 }
 
 const SolveRecord& Bench::solveFor(const Setting& s) {
-    const auto key = std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.specularRays, s.tolerance, s.refine, s.refineBudget, s.solver);
+    const auto key = std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.specularRays, s.tolerance, s.refine,
+                                     s.refineBudget, s.solver);
     if (auto it = solves_.find(key); it != solves_.end()) return *it->second;
     // Every tolerance the plan asks of this mesh comes from one matrix: only the solve differs.
     std::vector<double> tolerances{s.tolerance};
     for (const Setting& p : plan_)
-        if (p.method != "path" && p.patches == s.patches && p.visibilityRays == s.visibilityRays && p.ffTolerance == s.ffTolerance &&
-            p.specularRays == s.specularRays && p.refine == s.refine && p.refineBudget == s.refineBudget && p.solver == s.solver && s.solver != "hierarchical" &&
+        if (p.method != "path" && p.patches == s.patches && p.visibilityRays == s.visibilityRays &&
+            p.ffTolerance == s.ffTolerance && p.specularRays == s.specularRays && p.refine == s.refine &&
+            p.refineBudget == s.refineBudget && p.solver == s.solver && s.solver != "hierarchical" &&
             std::find(tolerances.begin(), tolerances.end(), p.tolerance) == tolerances.end())
             tolerances.push_back(p.tolerance);
     SolveOptions o;
@@ -301,12 +323,13 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
         rec->B = solution.B;
         rec->display = solution.display;
         Timer vertexTimer;
-        rec->corners = &solution == &r.solution ? r.corners
-                                                : quietly([&] { return gatherCorners(r.patches, r.system, r.F, solution.display, *r.rays); });
+        rec->corners = &solution == &r.solution ? r.corners : quietly([&] {
+            return gatherCorners(r.patches, r.system, r.F, solution.display, *r.rays);
+        });
         const double vertexSeconds = &solution == &r.solution ? r.secondsVertices : vertexTimer.seconds();
         rec->rays = r.rays;
         rec->meshing = r.secondsMeshing, rec->formFactors = r.secondsFormFactors, rec->specular = r.secondsSpecular;
-        rec->solve = solveSeconds + vertexSeconds;   // the display's vertex radiosity counts with the solve
+        rec->solve = solveSeconds + vertexSeconds;  // the display's vertex radiosity counts with the solve
         rec->peakMiB = peak;
         rec->matrixMiB = double(formFactorMatrixBytes(r.F.size())) / (1 << 20);
         rec->links = r.hierarchy.links;
@@ -314,8 +337,8 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
         rec->rayCount = rays;
         rec->formFactorRays = r.F.stats.rays;
         rec->objectMean = objectMeans(scene_, rec->patches, rec->B);
-        solves_[std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.specularRays, tolerance, s.refine, s.refineBudget, s.solver)] =
-            std::move(rec);
+        solves_[std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.specularRays, tolerance, s.refine,
+                                s.refineBudget, s.solver)] = std::move(rec);
     };
     keep(tolerances.front(), r.solution, r.secondsSolve);
     for (size_t k = 1; k < tolerances.size(); ++k) {
@@ -347,7 +370,8 @@ Row Bench::runOne(const Setting& s) {
     } else {
         const SolveRecord& rec = solveFor(s);
         row.patchesMade = int(rec.patches.size());
-        row.meshing = rec.meshing, row.formFactors = rec.formFactors, row.specular = rec.specular, row.solve = rec.solve;
+        row.meshing = rec.meshing, row.formFactors = rec.formFactors, row.specular = rec.specular,
+        row.solve = rec.solve;
         row.matrixMiB = rec.matrixMiB;
         row.links = rec.links;
         row.storageMiB = rec.storageMiB;
@@ -388,9 +412,9 @@ Row Bench::runOne(const Setting& s) {
 
 void Bench::measureLimits(BenchResult& result) {
     result.embree = measureEmbreeLimit(pathPatches_, options_.quick ? 1000000 : 4000000, options_.seed);
-    logInfo("bench: Embree alone on ", pathPatches_.size(), " patches, ", result.embree.threads, " threads: ",
-            result.embree.occluded1 / 1e6, " M occlusion rays/s (8-wide packets ", result.embree.occluded8 / 1e6,
-            " M/s), ", result.embree.intersect1 / 1e6, " M nearest-hit rays/s");
+    logInfo("bench: Embree alone on ", pathPatches_.size(), " patches, ", result.embree.threads,
+            " threads: ", result.embree.occluded1 / 1e6, " M occlusion rays/s (8-wide packets ",
+            result.embree.occluded8 / 1e6, " M/s), ", result.embree.intersect1 / 1e6, " M nearest-hit rays/s");
     result.bandwidth = measureBandwidth(options_.quick ? 4000 : 16000, options_.seed);
     const BandwidthLimit& b = result.bandwidth;
     logInfo("bench: memory on a ", b.n, "^2 float matrix (", b.matrixBytes / (1 << 20), " MiB): read ", b.readGBs,
@@ -431,15 +455,19 @@ void Bench::measureThreads(BenchResult& result) {
     }
     const Camera cam = camera();
     const SolveRecord& rec = solveFor(baseSetting(baseline_, "final-gather", "default"));
-    const auto solved = quietly([&] { return std::make_unique<SolvedScene>(scene_, rec.patches, rec.display, GatherSettings{},
-                                                                           PhotonSettings{}, options_.seed); });
+    const auto solved = quietly([&] {
+        return std::make_unique<SolvedScene>(scene_, rec.patches, rec.display, GatherSettings{}, PhotonSettings{},
+                                             options_.seed);
+    });
     const int spp = options_.quick ? 1 : 4;
     auto gather = [&] { return solved->render(cam, spp, options_.seed).rgb; };
     const auto g1 = timed(1, gather), gn = timed(all, gather);
-    record("final gather", cat(cam.width, "x", cam.height, ", ", spp, " spp"), g1.first, gn.first, g1.second == gn.second);
+    record("final gather", cat(cam.width, "x", cam.height, ", ", spp, " spp"), g1.first, gn.first,
+           g1.second == gn.second);
     auto path = [&] { return renderPath(*pathTracer_, cam, spp * 4, options_.seed).rgb; };
     const auto p1 = timed(1, path), pn = timed(all, path);
-    record("path tracer", cat(cam.width, "x", cam.height, ", ", spp * 4, " spp"), p1.first, pn.first, p1.second == pn.second);
+    record("path tracer", cat(cam.width, "x", cam.height, ", ", spp * 4, " spp"), p1.first, pn.first,
+           p1.second == pn.second);
     setThreadCount(all);
 }
 
@@ -453,12 +481,16 @@ BenchResult Bench::run() {
     plan_ = planRuns(scene_, options_.quick, baseline_);
     if (!options_.only.empty()) {
         const auto& only = options_.only;
-        plan_.erase(std::remove_if(plan_.begin(), plan_.end(), [&](const Setting& s) {
-                        const std::string name = s.method == "path" ? "path" : s.sweep;
-                        return name != "default" && std::find(only.begin(), only.end(), name) == only.end();
-                    }), plan_.end());
+        plan_.erase(std::remove_if(plan_.begin(), plan_.end(),
+                                   [&](const Setting& s) {
+                                       const std::string name = s.method == "path" ? "path" : s.sweep;
+                                       return name != "default" &&
+                                              std::find(only.begin(), only.end(), name) == only.end();
+                                   }),
+                    plan_.end());
     }
-    logInfo("bench: ", scene_.path, " at ", cam.width, "x", cam.height, ", ", plan_.size(), " runs on ", result.machine);
+    logInfo("bench: ", scene_.path, " at ", cam.width, "x", cam.height, ", ", plan_.size(), " runs on ",
+            result.machine);
 
     Timer setup;
     pathPatches_ = meshScene(scene_, MeshingOptions{});
@@ -480,17 +512,19 @@ BenchResult Bench::run() {
             result.formFactorRays = double(rec.formFactorRays);
             result.formFactorSeconds = rec.formFactors;
         }
-        logInfo("bench: [", k + 1, "/", plan_.size(), "] ", cat(s.method, ", ", settingText(s)), ": ", row.total(), " s, error ",
-                100 * row.imageError, "%");
+        logInfo("bench: [", k + 1, "/", plan_.size(), "] ", cat(s.method, ", ", settingText(s)), ": ", row.total(),
+                " s, error ", 100 * row.imageError, "%");
         progress.update();
     }
     // Radiosity per object against the finest solve of the sweep (whose own rows have none).
     const SolveRecord* finest = nullptr;
     for (const auto& [key, rec] : solves_)
-        if (rec->links == 0 && (!finest || rec->patches.size() > finest->patches.size())) finest = rec.get();   // a matrix solve
+        if (rec->links == 0 && (!finest || rec->patches.size() > finest->patches.size()))
+            finest = rec.get();  // a matrix solve
     for (size_t k = 0; k < result.rows.size(); ++k) {
         if (!records[k] || !finest || records[k]->patches.size() == finest->patches.size()) continue;
-        const auto [worst, mean] = objectErrors(scene_, records[k]->patches, records[k]->objectMean, finest->objectMean);
+        const auto [worst, mean] =
+            objectErrors(scene_, records[k]->patches, records[k]->objectMean, finest->objectMean);
         result.rows[k].objectErrorMax = worst;
         result.rows[k].objectErrorMean = mean;
     }

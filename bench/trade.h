@@ -18,12 +18,13 @@ namespace penumbra::bench {
 
 struct BenchOptions {
     std::string scene, out;
-    std::string cache;       // folder of cached reference images ("": $XDG_CACHE_HOME or ~/.cache, /penumbra)
-    bool quick = false;      // a one-minute version: fewer, smaller runs
-    int width = 0, height = 0;   // 0: 256 pixels wide (quick: 64), the camera's aspect
-    int referenceSpp = 0;    // 0: 4096 (quick: 1024)
+    std::string cache;          // folder of cached reference images ("": $XDG_CACHE_HOME or ~/.cache, /penumbra)
+    bool quick = false;         // a one-minute version: fewer, smaller runs
+    int width = 0, height = 0;  // 0: 256 pixels wide (quick: 64), the camera's aspect
+    int referenceSpp = 0;       // 0: 4096 (quick: 1024)
     uint64_t seed = 1;
-    std::vector<std::string> only;   // non-empty: just these sweeps (and the defaults), e.g. patches,adaptive,hierarchical
+    std::vector<std::string>
+        only;  // non-empty: just these sweeps (and the defaults), e.g. patches,adaptive,hierarchical
 };
 
 // One setting of the sweep. `method`: "final-gather" (radiosity + final gather), "radiosity" (the
@@ -31,14 +32,14 @@ struct BenchOptions {
 struct Setting {
     std::string method, sweep;
     int patches = 0, visibilityRays = 0;
-    double ffTolerance = 0;   // the form-factor cubature's target error
-    double tolerance = 0;     // the solver's
-    int specularRays = 0;     // rays per patch through mirrors and glass in the solve
+    double ffTolerance = 0;  // the form-factor cubature's target error
+    double tolerance = 0;    // the solver's
+    int specularRays = 0;    // rays per patch through mirrors and glass in the solve
     int64_t photons = 0;
     int photonK = 0, gatherRays = 0, spp = 0;
-    double refine = 0;              // > 0: adaptive subdivision from `patches` to this tolerance
-    int refineBudget = 0;           // and at most this many patches
-    std::string solver = "gauss-seidel";   // or "hierarchical" (then `patches` sets the finest elements)
+    double refine = 0;                    // > 0: adaptive subdivision from `patches` to this tolerance
+    int refineBudget = 0;                 // and at most this many patches
+    std::string solver = "gauss-seidel";  // or "hierarchical" (then `patches` sets the finest elements)
 };
 
 // What one run cost and how close it came. Seconds are wall seconds of producing the image from
@@ -49,23 +50,23 @@ struct Row {
     double meshing = 0, formFactors = 0, specular = 0, solve = 0, photons = 0, render = 0;
     double total() const { return meshing + formFactors + specular + solve + photons + render; }
     double solveTotal() const { return meshing + formFactors + specular + solve; }
-    double peakMiB = 0;          // peak resident memory during the run's own stages
+    double peakMiB = 0;  // peak resident memory during the run's own stages
     double matrixMiB = 0;
-    uint64_t links = 0;          // hierarchical: links kept
-    double storageMiB = 0;       // what the solve's light transport is stored in: matrix, or elements and links
-    uint64_t rays = 0;           // rays cast by the run's stages (solve + render)
-    uint64_t renderRays = 0;     // of those, the final gather's render alone (photons not counted)
-    double imageError = 0;       // pooled L1 after a 5x5 box blur, against the reference
-    double imageErrorRaw = 0;    // per-pixel relative error after the same blur (beside it, labelled)
+    uint64_t links = 0;        // hierarchical: links kept
+    double storageMiB = 0;     // what the solve's light transport is stored in: matrix, or elements and links
+    uint64_t rays = 0;         // rays cast by the run's stages (solve + render)
+    uint64_t renderRays = 0;   // of those, the final gather's render alone (photons not counted)
+    double imageError = 0;     // pooled L1 after a 5x5 box blur, against the reference
+    double imageErrorRaw = 0;  // per-pixel relative error after the same blur (beside it, labelled)
     double rmse = 0;
-    double objectErrorMax = -1, objectErrorMean = -1;   // radiosity per object against the finest solve; -1: none
+    double objectErrorMax = -1, objectErrorMean = -1;  // radiosity per object against the finest solve; -1: none
     bool pareto = false;
 };
 
 // Stage speed-up from one thread to all of them, and whether the results were identical.
 struct ThreadScaling {
     std::string stage, size;
-    double oneThread = 0, allThreads = 0;   // seconds
+    double oneThread = 0, allThreads = 0;  // seconds
     int threads = 0;
     bool identical = false;
 };
@@ -73,7 +74,7 @@ struct ThreadScaling {
 struct BenchResult {
     std::string scene, machine;
     int width = 0, height = 0, referenceSpp = 0;
-    double referenceSeconds = 0;   // 0 when read from the cache
+    double referenceSeconds = 0;  // 0 when read from the cache
     std::vector<Row> rows;
     EmbreeLimit embree;
     BandwidthLimit bandwidth;

@@ -25,17 +25,18 @@ std::string cat(const Parts&... parts) {
 
 }  // namespace penumbra
 
-#define PENUMBRA_CHECK(cond)                                                                  \
-    do {                                                                                      \
-        if (!(cond)) ::penumbra::checkFailed(__FILE__, __LINE__, "CHECK(" #cond ") failed");   \
+#define PENUMBRA_CHECK(cond)                                                                 \
+    do {                                                                                     \
+        if (!(cond)) ::penumbra::checkFailed(__FILE__, __LINE__, "CHECK(" #cond ") failed"); \
     } while (0)
 
-#define PENUMBRA_CHECK_OP(a, op, b)                                                            \
-    do {                                                                                      \
-        const auto& check_a_ = (a);                                                           \
-        const auto& check_b_ = (b);                                                           \
-        if (!(check_a_ op check_b_))                                                          \
-            ::penumbra::checkFailed(__FILE__, __LINE__,                                       \
+#define PENUMBRA_CHECK_OP(a, op, b)                                                                    \
+    do {                                                                                               \
+        const auto& check_a_ = (a);                                                                    \
+        const auto& check_b_ = (b);                                                                    \
+        if (!(check_a_ op check_b_))                                                                   \
+            ::penumbra::checkFailed(                                                                   \
+                __FILE__, __LINE__,                                                                    \
                 ::penumbra::cat("CHECK(" #a " " #op " " #b ") failed: ", check_a_, " vs ", check_b_)); \
     } while (0)
 

@@ -13,13 +13,16 @@ void setLogLevel(LogLevel level);
 LogLevel logLevel();
 void logMessage(LogLevel level, const std::string& message);
 
-template <typename... Parts> void logInfo(const Parts&... parts) {
+template <typename... Parts>
+void logInfo(const Parts&... parts) {
     if (logLevel() <= LogLevel::Info) logMessage(LogLevel::Info, cat(parts...));
 }
-template <typename... Parts> void logDebug(const Parts&... parts) {
+template <typename... Parts>
+void logDebug(const Parts&... parts) {
     if (logLevel() <= LogLevel::Debug) logMessage(LogLevel::Debug, cat(parts...));
 }
-template <typename... Parts> void logWarning(const Parts&... parts) {
+template <typename... Parts>
+void logWarning(const Parts&... parts) {
     logMessage(LogLevel::Warning, cat(parts...));
 }
 

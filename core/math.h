@@ -9,7 +9,7 @@ namespace penumbra {
 
 using Vec3 = Eigen::Vector3d;
 using Vec3f = Eigen::Vector3f;
-using Rgb = Eigen::Array3d;   // one value per colour channel, component-wise arithmetic
+using Rgb = Eigen::Array3d;  // one value per colour channel, component-wise arithmetic
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kInvPi = 1.0 / kPi;

@@ -15,8 +15,7 @@ int g_threads = 0;
 
 void setThreadCount(int threads) {
     g_threads = threads > 0 ? threads : tbb::info::default_concurrency();
-    g_control = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                      size_t(g_threads));
+    g_control = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(g_threads));
 }
 
 int threadCount() { return g_threads > 0 ? g_threads : tbb::info::default_concurrency(); }

@@ -9,9 +9,11 @@
 namespace penumbra {
 
 Progress::Progress(std::string title, int64_t total)
-    : title_(std::move(title)), total_(total > 0 ? total : 1),
+    : title_(std::move(title)),
+      total_(total > 0 ? total : 1),
       enabled_(isatty(STDERR_FILENO) && logLevel() <= LogLevel::Info),
-      start_(std::chrono::steady_clock::now()), lastDraw_(start_) {}
+      start_(std::chrono::steady_clock::now()),
+      lastDraw_(start_) {}
 
 Progress::~Progress() { done(); }
 
@@ -38,15 +40,14 @@ void Progress::done() {
 
 void Progress::draw(bool final) {
     const double fraction = std::min(1.0, double(count_) / double(total_));
-    const double elapsed =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
     const int width = 30;
     const int filled = int(fraction * width);
     std::string bar(filled, '#');
     bar += std::string(width - filled, ' ');
     const double remaining = fraction > 0 ? elapsed * (1 - fraction) / fraction : 0;
-    std::fprintf(stderr, "\r%-14s [%s] %5.1f%%  %6.1fs%s", title_.c_str(), bar.c_str(),
-                 100 * fraction, final ? elapsed : remaining, final ? "      \n" : " left ");
+    std::fprintf(stderr, "\r%-14s [%s] %5.1f%%  %6.1fs%s", title_.c_str(), bar.c_str(), 100 * fraction,
+                 final ? elapsed : remaining, final ? "      \n" : " left ");
     std::fflush(stderr);
 }
 

@@ -18,14 +18,14 @@ inline uint64_t mixSeed(uint64_t a, uint64_t b = 0, uint64_t c = 0) {
 // The program's random streams, one per purpose, so that no two purposes draw the same numbers for
 // one seed and work item; every generator is made through one of them (streamRng, pairRng).
 enum class Stream : uint64_t {
-    Visibility = 1,                // form-factor visibility rays of a patch pair
-    BackVisibility = 2,            // the rays to the back part of a straddling pair
-    Pixels = 3,                    // a pixel's camera samples (pairRng: row, column)
-    SpecularTransport = 0x5bec,    // the solve's rays through mirrors and glass, per patch
-    Photons = 0x9407,              // caustic photons, per photon
-    EscapeRays = 0xe5ca9e,         // rays counting the escaped power, per patch
-    CausticRegion = 0xca057,       // emitter samples that find the caustic region, per pixel
-    BenchReference = 0x5EF,        // the bench's path-traced reference image
+    Visibility = 1,              // form-factor visibility rays of a patch pair
+    BackVisibility = 2,          // the rays to the back part of a straddling pair
+    Pixels = 3,                  // a pixel's camera samples (pairRng: row, column)
+    SpecularTransport = 0x5bec,  // the solve's rays through mirrors and glass, per patch
+    Photons = 0x9407,            // caustic photons, per photon
+    EscapeRays = 0xe5ca9e,       // rays counting the escaped power, per patch
+    CausticRegion = 0xca057,     // emitter samples that find the caustic region, per pixel
+    BenchReference = 0x5EF,      // the bench's path-traced reference image
 };
 
 class Rng {

@@ -96,7 +96,8 @@ void writeGltf(const ExportMesh& mesh, const std::string& path, double exposure)
     const std::vector<float> positions = flatten(n, [&](size_t i) { return mesh.positions[i]; });
     const std::vector<float> normals = flatten(n, [&](size_t i) { return mesh.normals[i]; });
     const std::vector<float> radiance = flatten(n, [&](size_t i) { return mesh.radiance[i]; });
-    const std::vector<float> colours = flatten(n, [&](size_t i) { return Rgb((exposure * mesh.radiance[i]).min(1.0)); });
+    const std::vector<float> colours =
+        flatten(n, [&](size_t i) { return Rgb((exposure * mesh.radiance[i]).min(1.0)); });
     std::vector<uint32_t> indices;
     for (const auto& t : mesh.triangles)
         for (int v : t) indices.push_back(uint32_t(v));
@@ -107,8 +108,8 @@ void writeGltf(const ExportMesh& mesh, const std::string& path, double exposure)
     primitive.attributes["COLOR_0"] = addVec3Accessor(model, colours, false);
     primitive.attributes["_RADIANCE"] = addVec3Accessor(model, radiance, false);
     tinygltf::Accessor index;
-    index.bufferView = addView(model, indices.data(), indices.size() * sizeof(uint32_t),
-                               TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+    index.bufferView =
+        addView(model, indices.data(), indices.size() * sizeof(uint32_t), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
     index.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
     index.count = indices.size();
     index.type = TINYGLTF_TYPE_SCALAR;
@@ -150,8 +151,9 @@ void writeGltf(const ExportMesh& mesh, const std::string& path, double exposure)
 
 void writePly(const ExportMesh& mesh, const std::string& path, double exposure) {
     std::vector<std::array<unsigned char, 3>> colours;
-    for (const Rgb& r : mesh.radiance) colours.push_back({srgb8(exposure * r[0]), srgb8(exposure * r[1]), srgb8(exposure * r[2])});
-    const std::string temporary = temporarySibling(path) + ".ply";   // OpenMesh picks the writer by extension
+    for (const Rgb& r : mesh.radiance)
+        colours.push_back({srgb8(exposure * r[0]), srgb8(exposure * r[1]), srgb8(exposure * r[2])});
+    const std::string temporary = temporarySibling(path) + ".ply";  // OpenMesh picks the writer by extension
     try {
         writeColouredPly(temporary, mesh.positions, mesh.triangles, colours);
     } catch (...) {

@@ -12,8 +12,8 @@
 namespace penumbra {
 
 struct ExportMesh {
-    std::vector<Vec3> positions, normals;      // per vertex (patch corners are not shared)
-    std::vector<Rgb> radiance;                 // per vertex, W sr^-1 m^-2
+    std::vector<Vec3> positions, normals;  // per vertex (patch corners are not shared)
+    std::vector<Rgb> radiance;             // per vertex, W sr^-1 m^-2
     std::vector<std::array<int, 3>> triangles;
 };
 

@@ -40,7 +40,8 @@ Image readLinearImage(const std::string& path) {
     if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, all.data()))
         throw Error(cat(path, ": cannot read image: ", in->geterror()));
     for (size_t p = 0; p < size_t(spec.width) * size_t(spec.height); ++p)
-        for (size_t c = 0; c < 3; ++c) image.rgb[3 * p + c] = all[p * size_t(spec.nchannels) + std::min<size_t>(c, size_t(spec.nchannels) - 1)];
+        for (size_t c = 0; c < 3; ++c)
+            image.rgb[3 * p + c] = all[p * size_t(spec.nchannels) + std::min<size_t>(c, size_t(spec.nchannels) - 1)];
     return image;
 }
 

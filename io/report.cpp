@@ -12,7 +12,9 @@ nlohmann::json rgbJson(const Rgb& c) { return nlohmann::json::array({c[0], c[1],
 
 std::string orbitJson(const std::vector<Camera>& cameras, const std::vector<std::string>& images, double unitScale) {
     nlohmann::json views = nlohmann::json::array();
-    auto point = [&](const Vec3& p) { return nlohmann::json::array({p.x() / unitScale, p.y() / unitScale, p.z() / unitScale}); };
+    auto point = [&](const Vec3& p) {
+        return nlohmann::json::array({p.x() / unitScale, p.y() / unitScale, p.z() / unitScale});
+    };
     for (size_t k = 0; k < cameras.size(); ++k) {
         const Camera& c = cameras[k];
         views.push_back({{"image", images[k]},
@@ -36,8 +38,8 @@ std::string summariseReport(const std::string& text) {
     };
     const auto& solver = r["solver"];
     return cat(solver.value("name", std::string("?")), ": ", solver.value("patches", 0), " patches, ",
-               solver.value("iterations", 0), " iterations, residual ", solver.value("residual", 0.0), "\n",
-               "emitted ", sum("emitted_power_w"), " W = absorbed ", sum("absorbed_power_w"), " W + escaped ",
+               solver.value("iterations", 0), " iterations, residual ", solver.value("residual", 0.0), "\n", "emitted ",
+               sum("emitted_power_w"), " W = absorbed ", sum("absorbed_power_w"), " W + escaped ",
                sum("escaped_power_w"), " W");
 }
 
@@ -79,8 +81,11 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
         {"converged", r.solution.converged},
         {"threads", threadCount()},
         {"seconds",
-         {{"meshing", r.secondsMeshing}, {"form_factors", r.secondsFormFactors},
-          {"specular_transport", r.secondsSpecular}, {"solve", r.secondsSolve}, {"vertex_radiosity", r.secondsVertices}}},
+         {{"meshing", r.secondsMeshing},
+          {"form_factors", r.secondsFormFactors},
+          {"specular_transport", r.secondsSpecular},
+          {"solve", r.secondsSolve},
+          {"vertex_radiosity", r.secondsVertices}}},
         {"counters",
          {{"facing_pairs", ff.pairs},
           {"occluded_pairs", ff.occluded},
@@ -98,17 +103,26 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
     if (!r.solverReason.empty()) report["solver"]["chosen_because"] = r.solverReason;
     if (r.solverName == "hierarchical") {
         const HierarchyStats& h = r.hierarchy;
-        report["solver"]["hierarchy"] = {{"roots", h.roots}, {"elements", h.elements}, {"leaves", h.leaves},
-                                         {"links", h.links}, {"partly_visible_links", h.partlyVisibleLinks},
-                                         {"visibility_rays", h.rays}, {"kernel_evaluations", h.kernelEvaluations},
-                                         {"rounds", h.rounds}, {"storage_mib", h.bytes / (1 << 20)},
-                                         {"matrix_of_as_many_patches_mib", double(formFactorMatrixBytes(h.leaves)) / (1 << 20)}};
+        report["solver"]["hierarchy"] = {
+            {"roots", h.roots},
+            {"elements", h.elements},
+            {"leaves", h.leaves},
+            {"links", h.links},
+            {"partly_visible_links", h.partlyVisibleLinks},
+            {"visibility_rays", h.rays},
+            {"kernel_evaluations", h.kernelEvaluations},
+            {"rounds", h.rounds},
+            {"storage_mib", h.bytes / (1 << 20)},
+            {"matrix_of_as_many_patches_mib", double(formFactorMatrixBytes(h.leaves)) / (1 << 20)}};
     }
     if (!r.refinement.empty()) {
         Json rounds = Json::array();
         for (const RefineRound& round : r.refinement)
-            rounds.push_back({{"patches", round.patches}, {"split", round.split}, {"marked_by_gradient", round.byGradient},
-                              {"marked_by_shadow", round.byShadow}, {"seconds_so_far", round.secondsSoFar}});
+            rounds.push_back({{"patches", round.patches},
+                              {"split", round.split},
+                              {"marked_by_gradient", round.byGradient},
+                              {"marked_by_shadow", round.byShadow},
+                              {"seconds_so_far", round.secondsSoFar}});
         report["solver"]["refinement"] = rounds;
     }
     report["scene"] = {{"file", scene.path}, {"unit_scale", scene.unitScale}};

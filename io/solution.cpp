@@ -16,7 +16,10 @@ constexpr char kMagic01[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '1'};
 
 struct Writer {
     std::string bytes;
-    template <typename T> void put(const T& v) { bytes.append(reinterpret_cast<const char*>(&v), sizeof(T)); }
+    template <typename T>
+    void put(const T& v) {
+        bytes.append(reinterpret_cast<const char*>(&v), sizeof(T));
+    }
     void put(const Vec3& v) { put(v.x()), put(v.y()), put(v.z()); }
     void put(const Rgb& v) { put(v[0]), put(v[1]), put(v[2]); }
 };
@@ -25,15 +28,22 @@ struct Reader {
     const std::string& bytes;
     const std::string& path;
     size_t at = 0;
-    template <typename T> T get() {
+    template <typename T>
+    T get() {
         if (at + sizeof(T) > bytes.size()) throw Error(cat(path, ": solution file is truncated"));
         T v;
         std::memcpy(&v, bytes.data() + at, sizeof(T));
         at += sizeof(T);
         return v;
     }
-    Vec3 vec() { const double x = get<double>(), y = get<double>(), z = get<double>(); return Vec3(x, y, z); }
-    Rgb rgb() { const double x = get<double>(), y = get<double>(), z = get<double>(); return Rgb(x, y, z); }
+    Vec3 vec() {
+        const double x = get<double>(), y = get<double>(), z = get<double>();
+        return Vec3(x, y, z);
+    }
+    Rgb rgb() {
+        const double x = get<double>(), y = get<double>(), z = get<double>();
+        return Rgb(x, y, z);
+    }
 };
 
 }  // namespace

@@ -15,9 +15,9 @@ namespace penumbra {
 struct StoredSolution {
     uint64_t sceneFingerprint = 0;
     PatchSet patches;
-    std::vector<Rgb> radiosity;   // B, W/m^2
-    std::vector<Rgb> display;     // B plus any ambient estimate
-    CornerValues corners;         // the displayed radiosity at each patch corner, W/m^2
+    std::vector<Rgb> radiosity;  // B, W/m^2
+    std::vector<Rgb> display;    // B plus any ambient estimate
+    CornerValues corners;        // the displayed radiosity at each patch corner, W/m^2
 };
 
 void writeSolution(const std::string& path, const StoredSolution& solution);

@@ -1,10 +1,9 @@
 #include "mesh/mesh_file.h"
 
-#include <filesystem>
-
 #include <OpenMesh/Core/IO/MeshIO.hh>
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
 #include <OpenMesh/Core/System/omstream.hh>
+#include <filesystem>
 
 #include "core/error.h"
 

@@ -1,12 +1,11 @@
 // Scene objects -> OpenMesh meshes -> patches. Quads become grids of quads; triangles a regular
 // grid of sub-triangles; spheres a projected cube (near-uniform triangle pairs); mesh files are triangulated
 // and refined with OpenMesh's longest-edge splitting until no edge exceeds the target size.
-#include <cmath>
-#include <map>
-
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 #include <OpenMesh/Tools/Subdivider/Uniform/LongestEdgeT.hh>
+#include <cmath>
+#include <map>
 
 #include "core/error.h"
 #include "core/log.h"
@@ -56,7 +55,8 @@ PolyMesh gridQuad(const std::vector<Vec3>& q, double h) {
     for (int j = 0; j <= nv; ++j)
         for (int i = 0; i <= nu; ++i) {
             const double u = double(i) / nu, v = double(j) / nv;
-            vh.push_back(mesh.add_vertex(om((1 - u) * (1 - v) * q[0] + u * (1 - v) * q[1] + u * v * q[2] + (1 - u) * v * q[3])));
+            vh.push_back(
+                mesh.add_vertex(om((1 - u) * (1 - v) * q[0] + u * (1 - v) * q[1] + u * v * q[2] + (1 - u) * v * q[3])));
         }
     for (int j = 0; j < nv; ++j)
         for (int i = 0; i < nu; ++i) {
@@ -74,12 +74,14 @@ PolyMesh gridTriangle(const std::vector<Vec3>& t, double h) {
     std::vector<std::vector<PolyMesh::VertexHandle>> vh(size_t(k + 1));
     for (int i = 0; i <= k; ++i)
         for (int j = 0; j <= k - i; ++j)
-            vh[size_t(i)].push_back(mesh.add_vertex(om(t[0] + (double(i) / k) * (t[1] - t[0]) + (double(j) / k) * (t[2] - t[0]))));
+            vh[size_t(i)].push_back(
+                mesh.add_vertex(om(t[0] + (double(i) / k) * (t[1] - t[0]) + (double(j) / k) * (t[2] - t[0]))));
     for (int i = 0; i < k; ++i)
         for (int j = 0; j < k - i; ++j) {
             mesh.add_face(vh[size_t(i)][size_t(j)], vh[size_t(i + 1)][size_t(j)], vh[size_t(i)][size_t(j + 1)]);
             if (j + 1 < k - i)
-                mesh.add_face(vh[size_t(i + 1)][size_t(j)], vh[size_t(i + 1)][size_t(j + 1)], vh[size_t(i)][size_t(j + 1)]);
+                mesh.add_face(vh[size_t(i + 1)][size_t(j)], vh[size_t(i + 1)][size_t(j + 1)],
+                              vh[size_t(i)][size_t(j + 1)]);
         }
     return mesh;
 }
@@ -95,7 +97,7 @@ double unitCubeSphereArea(int k) {
     double area = 0;
     auto p = [&](int ii, int jj) { return Vec3(1, 2.0 * ii / k - 1, 2.0 * jj / k - 1).normalized(); };
     for (int j = 0; j < k; ++j)
-        for (int i = 0; i < k; ++i) {   // one face; the six are congruent
+        for (int i = 0; i < k; ++i) {  // one face; the six are congruent
             const Vec3 a = p(i, j), b = p(i + 1, j), c = p(i + 1, j + 1), d = p(i, j + 1);
             const bool diagonalAC = ridgeAlongFirstDiagonal(a, b, c, d);
             area += diagonalAC ? 0.5 * ((b - a).cross(c - a).norm() + (c - a).cross(d - a).norm())
@@ -115,7 +117,7 @@ PolyMesh cubeSphere(const SceneObject& o, double h) {
     // gives the tessellation the sphere's area, so emitted and absorbed powers come out right.
     const double lift = std::sqrt(4 * kPi / unitCubeSphereArea(k));
     PolyMesh mesh;
-    std::map<std::array<long, 3>, PolyMesh::VertexHandle> shared;   // cube-edge vertices shared by faces
+    std::map<std::array<long, 3>, PolyMesh::VertexHandle> shared;  // cube-edge vertices shared by faces
     auto vertex = [&](const Vec3& cubePoint) {
         const std::array<long, 3> key{std::lround(cubePoint.x() * 2 * k), std::lround(cubePoint.y() * 2 * k),
                                       std::lround(cubePoint.z() * 2 * k)};
@@ -127,8 +129,10 @@ PolyMesh cubeSphere(const SceneObject& o, double h) {
     // A mirroring transform (negative determinant) would turn the facets inside out.
     const bool mirrored = o.toWorld.linear().determinant() < 0;
     auto triangle = [&](PolyMesh::VertexHandle a, PolyMesh::VertexHandle b, PolyMesh::VertexHandle d) {
-        if (mirrored) mesh.add_face(a, d, b);
-        else mesh.add_face(a, b, d);
+        if (mirrored)
+            mesh.add_face(a, d, b);
+        else
+            mesh.add_face(a, b, d);
     };
     for (int axis = 0; axis < 3; ++axis)
         for (int sign = -1; sign <= 1; sign += 2) {
@@ -137,7 +141,7 @@ PolyMesh cubeSphere(const SceneObject& o, double h) {
             Vec3 a = Vec3::Zero(), b = Vec3::Zero();
             a[(axis + 1) % 3] = 1;
             b[(axis + 2) % 3] = 1;
-            if (sign < 0) std::swap(a, b);   // keep a x b along the outward normal
+            if (sign < 0) std::swap(a, b);  // keep a x b along the outward normal
             for (int j = 0; j < k; ++j)
                 for (int i = 0; i < k; ++i) {
                     auto p = [&](int ii, int jj) { return n + (2.0 * ii / k - 1) * a + (2.0 * jj / k - 1) * b; };
@@ -165,12 +169,13 @@ TriMesh refinedSoup(const PolygonSoup& soup, double h, const std::string& name) 
     for (const auto& v : soup.vertices) vh.push_back(mesh.add_vertex(om(v)));
     size_t skipped = 0;
     for (const auto& f : soup.faces)
-        for (size_t k = 1; k + 1 < f.size(); ++k) {   // fan triangulation of convex polygons
+        for (size_t k = 1; k + 1 < f.size(); ++k) {  // fan triangulation of convex polygons
             const Vec3& a = soup.vertices[size_t(f[0])];
             const Vec3& b = soup.vertices[size_t(f[k])];
             const Vec3& c = soup.vertices[size_t(f[k + 1])];
             const double edge = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-            if ((b - a).cross(c - a).norm() <= 1e-12 * edge * edge || !mesh.add_face(vh[size_t(f[0])], vh[size_t(f[k])], vh[size_t(f[k + 1])]).is_valid())
+            if ((b - a).cross(c - a).norm() <= 1e-12 * edge * edge ||
+                !mesh.add_face(vh[size_t(f[0])], vh[size_t(f[k])], vh[size_t(f[k + 1])]).is_valid())
                 ++skipped;
         }
     if (skipped) logWarning("object '", name, "': skipped ", skipped, " degenerate or non-manifold mesh faces");
@@ -201,9 +206,10 @@ double PatchSet::jacobian(size_t i, double u, double v) const {
 }
 
 void PatchSet::add(const std::array<Vec3, 4>& c, int count, int objectIndex, const std::array<int, 4>& vertexIds) {
-    const Vec3 vectorArea = count == 3 ? 0.5 * (c[1] - c[0]).cross(c[2] - c[0]) : 0.5 * (c[2] - c[0]).cross(c[3] - c[1]);
+    const Vec3 vectorArea =
+        count == 3 ? 0.5 * (c[1] - c[0]).cross(c[2] - c[0]) : 0.5 * (c[2] - c[0]).cross(c[3] - c[1]);
     const double a = vectorArea.norm();
-    if (!(a > 0)) return;   // a degenerate sub-face (only from mesh refinement) carries no light
+    if (!(a > 0)) return;  // a degenerate sub-face (only from mesh refinement) carries no light
     corners.push_back(c);
     cornerCount.push_back(uint8_t(count));
     normal.push_back(vectorArea / a);
@@ -234,24 +240,24 @@ double sceneArea(const Scene& scene) {
     double total = 0;
     for (const auto& o : scene.objects) {
         switch (o.type) {
-        case ShapeType::Quad:
-            total += 0.5 * (o.vertices[2] - o.vertices[0]).cross(o.vertices[3] - o.vertices[1]).norm();
-            break;
-        case ShapeType::Triangle:
-            total += 0.5 * (o.vertices[1] - o.vertices[0]).cross(o.vertices[2] - o.vertices[0]).norm();
-            break;
-        case ShapeType::Sphere: {
-            const double r = (o.toWorld.linear() * Vec3(o.radius, 0, 0)).norm();
-            total += 4 * kPi * r * r;
-            break;
-        }
-        case ShapeType::Mesh:
-            for (const auto& f : o.mesh.faces)
-                for (size_t k = 1; k + 1 < f.size(); ++k)
-                    total += 0.5 * (o.mesh.vertices[size_t(f[k])] - o.mesh.vertices[size_t(f[0])])
-                                       .cross(o.mesh.vertices[size_t(f[k + 1])] - o.mesh.vertices[size_t(f[0])])
-                                       .norm();
-            break;
+            case ShapeType::Quad:
+                total += 0.5 * (o.vertices[2] - o.vertices[0]).cross(o.vertices[3] - o.vertices[1]).norm();
+                break;
+            case ShapeType::Triangle:
+                total += 0.5 * (o.vertices[1] - o.vertices[0]).cross(o.vertices[2] - o.vertices[0]).norm();
+                break;
+            case ShapeType::Sphere: {
+                const double r = (o.toWorld.linear() * Vec3(o.radius, 0, 0)).norm();
+                total += 4 * kPi * r * r;
+                break;
+            }
+            case ShapeType::Mesh:
+                for (const auto& f : o.mesh.faces)
+                    for (size_t k = 1; k + 1 < f.size(); ++k)
+                        total += 0.5 * (o.mesh.vertices[size_t(f[k])] - o.mesh.vertices[size_t(f[0])])
+                                           .cross(o.mesh.vertices[size_t(f[k + 1])] - o.mesh.vertices[size_t(f[0])])
+                                           .norm();
+                break;
         }
     }
     return total;
@@ -267,10 +273,18 @@ PatchSet meshScene(const Scene& scene, const MeshingOptions& options) {
     for (size_t i = 0; i < scene.objects.size(); ++i) {
         const SceneObject& o = scene.objects[i];
         switch (o.type) {
-        case ShapeType::Quad: appendMesh(gridQuad(o.vertices, h), int(i), patches); break;
-        case ShapeType::Triangle: appendMesh(gridTriangle(o.vertices, h), int(i), patches); break;
-        case ShapeType::Sphere: appendMesh(cubeSphere(o, h), int(i), patches); break;
-        case ShapeType::Mesh: appendMesh(refinedSoup(o.mesh, h, o.name), int(i), patches); break;
+            case ShapeType::Quad:
+                appendMesh(gridQuad(o.vertices, h), int(i), patches);
+                break;
+            case ShapeType::Triangle:
+                appendMesh(gridTriangle(o.vertices, h), int(i), patches);
+                break;
+            case ShapeType::Sphere:
+                appendMesh(cubeSphere(o, h), int(i), patches);
+                break;
+            case ShapeType::Mesh:
+                appendMesh(refinedSoup(o.mesh, h, o.name), int(i), patches);
+                break;
         }
     }
     logInfo("meshed ", scene.objects.size(), " objects into ", patches.size(), " patches (target size ", h, " m)");

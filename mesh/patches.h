@@ -14,12 +14,12 @@ namespace penumbra {
 
 struct PatchSet {
     std::vector<std::array<Vec3, 4>> corners;
-    std::vector<uint8_t> cornerCount;           // 3 or 4
-    std::vector<Vec3> normal;                   // unit, front side
+    std::vector<uint8_t> cornerCount;  // 3 or 4
+    std::vector<Vec3> normal;          // unit, front side
     std::vector<Vec3> centroid;
-    std::vector<double> area;                   // m^2
-    std::vector<int> object;                    // index into Scene::objects
-    std::vector<double> radius;                 // smallest sphere about the centroid holding the patch
+    std::vector<double> area;    // m^2
+    std::vector<int> object;     // index into Scene::objects
+    std::vector<double> radius;  // smallest sphere about the centroid holding the patch
     // Display mesh: corners index shared vertices, so that radiosity can be interpolated per
     // surface. Vertices are never shared between objects.
     std::vector<std::array<int, 4>> cornerVertex;
@@ -37,8 +37,8 @@ struct PatchSet {
 };
 
 struct MeshingOptions {
-    int targetPatches = 3000;   // about this many patches in all
-    double patchSize = 0;       // if > 0: target edge length in metres, overrides targetPatches
+    int targetPatches = 3000;  // about this many patches in all
+    double patchSize = 0;      // if > 0: target edge length in metres, overrides targetPatches
 };
 
 // Meshes every object of the scene (OpenMesh) into patches.

@@ -125,7 +125,8 @@ PatchSet splitPatches(const PatchSet& p, std::vector<char>& split) {
             const int n = p.cornerCount[i];
             for (int k = 0; k < n && !split[i]; ++k) {
                 const int a = p.cornerVertex[i][size_t(k)], b = p.cornerVertex[i][size_t((k + 1) % n)];
-                const auto it = index.find(keyOf(p.object[i], midpoint(p.corners[i][size_t(k)], p.corners[i][size_t((k + 1) % n)])));
+                const auto it = index.find(
+                    keyOf(p.object[i], midpoint(p.corners[i][size_t(k)], p.corners[i][size_t((k + 1) % n)])));
                 if (it == index.end()) continue;
                 for (int j : around[size_t(it->second)])
                     if (split[size_t(j)] && (hasCorner(p, size_t(j), a) || hasCorner(p, size_t(j), b))) {

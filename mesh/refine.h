@@ -15,10 +15,10 @@ namespace penumbra {
 // A vertex that lies at the midpoint of an edge of a coarser patch without being one of its
 // corners: its displayed value must be the mean of that edge's end values, or the shading cracks.
 struct HangingVertex {
-    int vertex;       // the display vertex
-    int patch;        // the coarser patch whose edge it splits
-    int cornerA, cornerB;   // that edge's corners in the patch (0..3)
-    double edgeLength;      // metres: coarser edges first resolves chains of hanging vertices
+    int vertex;            // the display vertex
+    int patch;             // the coarser patch whose edge it splits
+    int cornerA, cornerB;  // that edge's corners in the patch (0..3)
+    double edgeLength;     // metres: coarser edges first resolves chains of hanging vertices
 };
 
 // All hanging vertices of the patch set, longest edge first.

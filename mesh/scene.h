@@ -35,17 +35,17 @@ struct SceneObject {
     std::string name;
     ShapeType type = ShapeType::Quad;
     int material = -1;
-    std::vector<Vec3> vertices;   // quad (4) or triangle (3), in metres, world space
-    PolygonSoup mesh;             // mesh: vertices in metres, world space
-    std::string file;             // mesh: the resolved path
-    Vec3 center = Vec3::Zero();   // sphere: local centre (scene units)
-    double radius = 0;            // sphere: local radius (scene units)
+    std::vector<Vec3> vertices;  // quad (4) or triangle (3), in metres, world space
+    PolygonSoup mesh;            // mesh: vertices in metres, world space
+    std::string file;            // mesh: the resolved path
+    Vec3 center = Vec3::Zero();  // sphere: local centre (scene units)
+    double radius = 0;           // sphere: local radius (scene units)
     // Local-to-world map in metres (scene units -> metres included). Applied to spheres at meshing.
     Eigen::Affine3d toWorld = Eigen::Affine3d::Identity();
 };
 
 struct Camera {
-    Vec3 position = Vec3::Zero();   // metres
+    Vec3 position = Vec3::Zero();  // metres
     Vec3 lookAt = Vec3(0, 0, 1);
     Vec3 up = Vec3(0, 1, 0);
     double fovYDeg = 40;
@@ -53,13 +53,13 @@ struct Camera {
 };
 
 struct Scene {
-    std::string path;             // the scene file, as given
+    std::string path;  // the scene file, as given
     double unitScale = 1;
     std::vector<Material> materials;
     std::vector<SceneObject> objects;
     bool hasCamera = false;
     Camera camera;
-    uint64_t fingerprint = 0;     // hash of the scene file and mesh files, to match solutions
+    uint64_t fingerprint = 0;  // hash of the scene file and mesh files, to match solutions
 
     bool hasEmitter() const;
     bool hasSpecular() const;

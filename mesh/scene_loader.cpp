@@ -3,10 +3,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
-
-#include <nlohmann/json.hpp>
 
 #include "core/error.h"
 #include "core/log.h"
@@ -204,7 +203,8 @@ Camera parseCameraJson(const Json& j, double unitScale, const Where& w) {
     if (forward.norm() == 0) w.at("look_at").fail("look_at equals position: the camera has no direction");
     if (c.up.norm() == 0 || forward.normalized().cross(c.up.normalized()).norm() < 1e-6)
         w.at("up").fail("up is zero or parallel to the viewing direction");
-    if (!(c.fovYDeg > 0 && c.fovYDeg < 180)) w.at("fov_y_deg").fail(cat("expected a field of view in (0, 180) degrees, got ", c.fovYDeg));
+    if (!(c.fovYDeg > 0 && c.fovYDeg < 180))
+        w.at("fov_y_deg").fail(cat("expected a field of view in (0, 180) degrees, got ", c.fovYDeg));
     if (j.contains("resolution")) {
         const Json& r = j["resolution"];
         const Where wr = w.at("resolution");
@@ -250,12 +250,15 @@ Scene loadScene(const std::string& path) {
     } catch (const Json::parse_error& e) {
         size_t line = 1, col = 1;
         for (size_t i = 0; i + 1 < e.byte && i < text.size(); ++i) {
-            if (text[i] == '\n') ++line, col = 1;
-            else ++col;
+            if (text[i] == '\n')
+                ++line, col = 1;
+            else
+                ++col;
         }
         std::string what = e.what();
         const auto p = what.find("syntax error");
-        throw Error(cat(path, ":", line, ":", col, ": malformed JSON: ", p == std::string::npos ? what : what.substr(p)));
+        throw Error(
+            cat(path, ":", line, ":", col, ": malformed JSON: ", p == std::string::npos ? what : what.substr(p)));
     } catch (const Json::out_of_range& e) {
         // The parser's only range error: a literal beyond double precision, such as 1e999.
         std::string what = e.what();
@@ -326,7 +329,8 @@ Scene loadScene(const std::string& path) {
             o.radius = number(require(j, "radius", w), w.at("radius"));
             if (!(o.radius > 0)) w.at("radius").fail(cat("radius must be positive, got ", o.radius));
             checkCoordinate(o.toWorld * o.center, w.at("center"));
-            if (o.radius * scene.unitScale > kAbsurdMetres) w.at("radius").fail("radius is absurdly large: check unit_scale");
+            if (o.radius * scene.unitScale > kAbsurdMetres)
+                w.at("radius").fail("radius is absurdly large: check unit_scale");
         } else if (t == "mesh") {
             checkKeys(j, w, {"name", "type", "material", "file", "transform"});
             o.type = ShapeType::Mesh;

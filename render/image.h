@@ -9,7 +9,7 @@ namespace penumbra {
 
 struct Image {
     int width = 0, height = 0;
-    std::vector<float> rgb;   // 3 floats per pixel
+    std::vector<float> rgb;  // 3 floats per pixel
     Image() = default;
     Image(int w, int h) : width(w), height(h), rgb(size_t(w) * size_t(h) * 3, 0.0f) {}
     Rgb at(int x, int y) const {

@@ -11,10 +11,10 @@ namespace penumbra {
 Image boxBlur(const Image& image, int radius);
 
 struct ImageError {
-    double pooledL1 = 0;       // sum over pixels and channels of |a - ref|, over the sum of ref
-    double meanRelative = 0;   // per-pixel relative error: mean over pixels and channels of |a - ref| / (ref + floor)
-    double rmse = 0;           // root mean square of a - ref, W sr^-1 m^-2
-    double meanRatio = 0;      // sum(a) / sum(ref): the overall brightness ratio
+    double pooledL1 = 0;      // sum over pixels and channels of |a - ref|, over the sum of ref
+    double meanRelative = 0;  // per-pixel relative error: mean over pixels and channels of |a - ref| / (ref + floor)
+    double rmse = 0;          // root mean square of a - ref, W sr^-1 m^-2
+    double meanRatio = 0;     // sum(a) / sum(ref): the overall brightness ratio
 };
 
 // Compares `image` with `reference` (same size; Error otherwise). `floor` keeps black pixels from

@@ -35,8 +35,8 @@ std::vector<Image> renderRadiosityViews(const RenderInputs& in, const std::vecto
 
 const std::vector<IntegratorEntry>& integrators() {
     static const std::vector<IntegratorEntry> table{
-        {"final-gather", "the solved radiosity gathered at every visible point, with direct light and caustics", 16, true,
-         renderFinalGatherViews},
+        {"final-gather", "the solved radiosity gathered at every visible point, with direct light and caustics", 16,
+         true, renderFinalGatherViews},
         {"path", "unbiased path tracing of the scene (needs no solve)", 1024, false, renderPathViews},
         {"radiosity", "the solved radiosity itself, interpolated over the patches", 4, true, renderRadiosityViews},
     };

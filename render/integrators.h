@@ -29,8 +29,8 @@ struct RenderInputs {
 struct IntegratorEntry {
     const char* name;
     const char* summary;
-    int defaultSpp;        // samples per pixel without --spp
-    bool needsSolution;    // reads the radiosity solution (else only the geometry)
+    int defaultSpp;      // samples per pixel without --spp
+    bool needsSolution;  // reads the radiosity solution (else only the geometry)
     // Renders every camera, sharing what the views have in common (ray scene, photon map).
     std::vector<Image> (*render)(const RenderInputs& in, const std::vector<Camera>& cameras, int spp);
 };

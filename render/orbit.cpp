@@ -12,8 +12,9 @@ std::vector<Camera> orbitCameras(const Camera& start, const Vec3& centre, int co
     PENUMBRA_CHECK(count >= 1);
     const Vec3 axis = start.up.normalized();
     if ((start.position - centre).cross(axis).norm() < 1e-9)
-        throw Error("--orbit: the camera stands on the vertical axis through the scene's centre, so there is no circle "
-                    "to move on; move the camera sideways (--camera)");
+        throw Error(
+            "--orbit: the camera stands on the vertical axis through the scene's centre, so there is no circle "
+            "to move on; move the camera sideways (--camera)");
     std::vector<Camera> cameras;
     for (int k = 0; k < count; ++k) {
         const Eigen::AngleAxisd turn(2 * kPi * k / count, axis);

@@ -13,8 +13,8 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
                  const PathSettings& settings) {
     Rgb L = Rgb::Zero(), throughput = Rgb::Ones();
     Vec3 o = origin, d = dir;
-    bool specular = true;    // the last bounce was the camera or a mirror/glass: emission counts fully
-    double bsdfPdf = 0;      // solid-angle pdf of the last diffuse bounce, for MIS on emitters
+    bool specular = true;  // the last bounce was the camera or a mirror/glass: emission counts fully
+    double bsdfPdf = 0;    // solid-angle pdf of the last diffuse bounce, for MIS on emitters
     for (int depth = 0; depth < settings.maxDepth; ++depth) {
         SurfaceHit hit = tracer.trace(o, d);
         if (hit.found && hit.material->type != MaterialType::Diffuse) {
@@ -29,7 +29,7 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
         }
         if (!hit.found) break;
         const Material& m = *hit.material;
-        if (!hit.frontFacing(d)) break;   // back faces are black
+        if (!hit.frontFacing(d)) break;  // back faces are black
         if (m.emits()) {
             if (specular) {
                 L += throughput * m.emission;
@@ -71,8 +71,9 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
 
 Image renderPath(const SceneTracer& tracer, const Camera& camera, int samplesPerPixel, uint64_t seed,
                  const PathSettings& settings) {
-    return renderPixels(camera, samplesPerPixel, seed, "path tracing",
-                        [&](const Vec3& o, const Vec3& d, Rng& rng) { return pathRadiance(tracer, o, d, rng, settings); });
+    return renderPixels(camera, samplesPerPixel, seed, "path tracing", [&](const Vec3& o, const Vec3& d, Rng& rng) {
+        return pathRadiance(tracer, o, d, rng, settings);
+    });
 }
 
 }  // namespace penumbra

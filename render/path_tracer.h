@@ -10,8 +10,8 @@
 namespace penumbra {
 
 struct PathSettings {
-    int rouletteDepth = 3;   // Russian roulette from this many bounces on
-    int maxDepth = 1000;     // a guard against endless paths only; roulette ends paths long before
+    int rouletteDepth = 3;  // Russian roulette from this many bounces on
+    int maxDepth = 1000;    // a guard against endless paths only; roulette ends paths long before
 };
 
 Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir, Rng& rng,

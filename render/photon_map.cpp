@@ -13,8 +13,8 @@ namespace {
 
 struct Photon {
     Eigen::Vector3f position;
-    Eigen::Vector3f normal;   // of the surface it landed on
-    Eigen::Vector3f power;    // W per channel
+    Eigen::Vector3f normal;  // of the surface it landed on
+    Eigen::Vector3f power;   // W per channel
 };
 
 // The estimate precomputed at a stored photon, valid within sqrt(radius2) of it.
@@ -24,18 +24,21 @@ struct IrradiancePoint {
 };
 
 // nanoflann's view of an array of photons or of precomputed points.
-template <typename Point> struct PointCloud {
+template <typename Point>
+struct PointCloud {
     std::vector<Point> points;
     size_t kdtree_get_point_count() const { return points.size(); }
     float kdtree_get_pt(size_t i, size_t d) const { return points[i].position[Eigen::Index(d)]; }
     template <class Box>
-    bool kdtree_get_bbox(Box&) const { return false; }
+    bool kdtree_get_bbox(Box&) const {
+        return false;
+    }
 };
 template <typename Point>
 using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointCloud<Point>>,
                                                    PointCloud<Point>, 3, uint32_t>;
 
-constexpr int64_t kChunk = 4096;   // photons per work item; the merge order is the chunk order
+constexpr int64_t kChunk = 4096;  // photons per work item; the merge order is the chunk order
 
 }  // namespace
 
@@ -65,8 +68,8 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
                 Rgb power = kPi * e.radiance / (e.pdfArea * double(n));
                 emitted[size_t(c)] += power;
                 const Vec3 d = cosineDirection(e.normal, rng);
-                const SpecularWalk w =
-                    walkSpecular(tracer, tracer.trace(e.point + tracer.epsilon() * e.normal, d), d, rng, settings.maxDepth);
+                const SpecularWalk w = walkSpecular(tracer, tracer.trace(e.point + tracer.epsilon() * e.normal, d), d,
+                                                    rng, settings.maxDepth);
                 if (w.end == WalkEnd::Diffuse && w.bounces > 0 && w.hit.frontFacing(w.dir))
                     stored[size_t(c)].push_back({w.hit.point.cast<float>(), w.hit.normal.cast<float>(),
                                                  Rgb(power * w.throughput).matrix().cast<float>()});
@@ -88,18 +91,23 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
     if (settings.precompute > 0 && !impl_->cloud.points.empty()) {
         const size_t stride = size_t(settings.precompute), count = (impl_->cloud.points.size() + stride - 1) / stride;
         impl_->precomputed.points.resize(count);
-        parallelFor(int64_t(count), [&](int64_t b, int64_t e) {
-            for (int64_t k = b; k < e; ++k) {
-                const Photon& p = impl_->cloud.points[size_t(k) * stride];
-                double radius = 0;
-                // Leave the photon itself out: an estimate at a photon's own position always counts
-                // that photon at the filter's full weight, which biases it up by about 1.5/k.
-                const Rgb E = estimate(p.position.cast<double>(), p.normal.cast<double>(), &radius, size_t(k) * stride);
-                impl_->precomputed.points[size_t(k)] = {p.position, p.normal, E.matrix().cast<float>(), float(radius * radius)};
-            }
-        }, 256);
-        impl_->precomputedTree =
-            std::make_unique<KdTree<IrradiancePoint>>(3, impl_->precomputed, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+        parallelFor(
+            int64_t(count),
+            [&](int64_t b, int64_t e) {
+                for (int64_t k = b; k < e; ++k) {
+                    const Photon& p = impl_->cloud.points[size_t(k) * stride];
+                    double radius = 0;
+                    // Leave the photon itself out: an estimate at a photon's own position always counts
+                    // that photon at the filter's full weight, which biases it up by about 1.5/k.
+                    const Rgb E =
+                        estimate(p.position.cast<double>(), p.normal.cast<double>(), &radius, size_t(k) * stride);
+                    impl_->precomputed.points[size_t(k)] = {p.position, p.normal, E.matrix().cast<float>(),
+                                                            float(radius * radius)};
+                }
+            },
+            256);
+        impl_->precomputedTree = std::make_unique<KdTree<IrradiancePoint>>(
+            3, impl_->precomputed, nanoflann::KDTreeSingleIndexAdaptorParams(16));
     }
     stats_.seconds = timer.seconds();
     logInfo("caustic photons: ", stats_.stored, " stored of ", stats_.emitted, " emitted (", stats_.storedPower.sum(),

@@ -17,18 +17,18 @@
 namespace penumbra {
 
 struct PhotonSettings {
-    int64_t photons = 1000000;   // photons emitted
-    int nearest = 50;            // k of the k-nearest density estimate
-    double maxRadius = 0.02;     // largest gather radius, as a fraction of the scene's diagonal
-    int maxDepth = 64;           // specular bounces before a photon is dropped
-    int precompute = 4;          // precompute the estimate at every this-many stored photons; 0: never
+    int64_t photons = 1000000;  // photons emitted
+    int nearest = 50;           // k of the k-nearest density estimate
+    double maxRadius = 0.02;    // largest gather radius, as a fraction of the scene's diagonal
+    int maxDepth = 64;          // specular bounces before a photon is dropped
+    int precompute = 4;         // precompute the estimate at every this-many stored photons; 0: never
     uint64_t seed = 1;
 };
 
 struct PhotonStats {
     int64_t emitted = 0, stored = 0;
-    Rgb emittedPower = Rgb::Zero();   // sum of the emitted photons' powers, W
-    Rgb storedPower = Rgb::Zero();    // sum of the stored photons' powers, W
+    Rgb emittedPower = Rgb::Zero();  // sum of the emitted photons' powers, W
+    Rgb storedPower = Rgb::Zero();   // sum of the stored photons' powers, W
     double seconds = 0;
 };
 
@@ -51,7 +51,7 @@ public:
     // The stored photons, in the order stored (for tests and figures).
     struct Stored {
         Vec3 position, normal;
-        Rgb power;   // W
+        Rgb power;  // W
     };
     std::vector<Stored> storedPhotons() const;
 

@@ -16,7 +16,7 @@ Image renderRadiosityView(const Scene& scene, const Camera& camera, const PatchS
                             const Hit hit = rays.intersect(origin, dir);
                             if (hit.patch < 0) return Rgb::Zero();
                             const size_t p = size_t(hit.patch);
-                            if (patches.normal[p].dot(dir) >= 0) return Rgb::Zero();   // back face: black
+                            if (patches.normal[p].dot(dir) >= 0) return Rgb::Zero();  // back face: black
                             const Material& m = scene.materialOf(scene.objects[size_t(patches.object[p])]);
                             if (m.type != MaterialType::Diffuse) return Rgb::Zero();
                             return interpolateAt(patches, p, hit.u, hit.v, corners[p]) * kInvPi;

@@ -13,7 +13,7 @@ PACKAGES=(
   libembree-dev libeigen3-dev libopenimageio-dev openimageio-tools libopenmesh-dev
   libtbb-dev nlohmann-json3-dev libcli11-dev libgtest-dev libnanoflann-dev libtinygltf-dev
   libglfw3-dev libimgui-dev libgl-dev libegl-dev libgl1-mesa-dri xvfb xauth
-  libbenchmark-dev gnuplot-nox
+  libbenchmark-dev gnuplot-nox clang-format
 )
 
 install_missing() {
@@ -57,6 +57,9 @@ case "${1:-}" in
     ;;
   test)
     install_missing
+    # The style the repository configures (.clang-format), checked before anything is built.
+    git ls-files '*.cpp' '*.h' | xargs clang-format --dry-run --Werror
+    echo "bootstrap: clang-format: $(git ls-files '*.cpp' '*.h' | wc -l) files follow .clang-format"
     build build
     (cd build && ctest --output-on-failure -j 2 --timeout 900)
     # The same tests, built with AddressSanitizer and UndefinedBehaviorSanitizer.

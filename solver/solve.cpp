@@ -59,14 +59,14 @@ double peakMemoryBytes() { return procKilobytes("/proc/self/status", "VmHWM:"); 
 
 bool resetPeakMemory() {
     std::ofstream clear("/proc/self/clear_refs");
-    clear << "5";   // 5: reset the peak resident set size to the current one
+    clear << "5";  // 5: reset the peak resident set size to the current one
     clear.flush();
     return bool(clear);
 }
 
 namespace {
 
-constexpr size_t kAutoMatrixPatches = 12000;   // past this the n^2 form factors take minutes
+constexpr size_t kAutoMatrixPatches = 12000;  // past this the n^2 form factors take minutes
 
 // One solve of the matrix system on the patches in `r`: form factors, specular transport, the
 // iterative solve and the power balance. Stage times add to those already in `r`.
@@ -84,7 +84,7 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
     logInfo("form-factor matrix: ", n, " x ", n, " floats, ", double(formFactorMatrixBytes(n)) / (1 << 20), " MiB");
 
     Timer ffTimer;
-    r.F = FormFactorMatrix();   // the previous round's matrix goes before the next one is made
+    r.F = FormFactorMatrix();  // the previous round's matrix goes before the next one is made
     r.rays = std::make_shared<RayScene>(r.patches);
     r.F = computeFormFactors(r.patches, *r.rays, options.formFactors);
     r.secondsFormFactors += ffTimer.seconds();
@@ -115,7 +115,6 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
     r.secondsVertices += vertexTimer.seconds();
 }
 
-
 // The roots with every quad that is not flat (a bilinear patch of a non-planar wall, like the Cornell
 // box's) replaced by the two triangles Embree traces it as: an element's sample points then lie on
 // the traced surface itself, not up to a millimetre off it and hidden behind it.
@@ -144,8 +143,9 @@ void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveRes
     Timer meshTimer;
     MeshingOptions rootMeshing;
     // Roots no finer than the elements asked for.
-    rootMeshing.targetPatches = options.meshing.patchSize > 0 ? options.hierarchyRoots
-                                                              : std::min(options.hierarchyRoots, options.meshing.targetPatches);
+    rootMeshing.targetPatches = options.meshing.patchSize > 0
+                                    ? options.hierarchyRoots
+                                    : std::min(options.hierarchyRoots, options.meshing.targetPatches);
     const PatchSet roots = planarRoots(meshScene(scene, rootMeshing));
     HierarchySettings settings = options.hierarchy;
     settings.solver = options.solverSettings;
@@ -176,11 +176,13 @@ void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveRes
         r.power.totalAbsorbed += r.power.absorbed[i];
     }
     r.power.escaped = h.escaped;
-    logInfo("hierarchical: ", h.stats.leaves, " leaves (", h.stats.elements, " elements over ", h.stats.roots, " roots), ",
-            h.stats.links, " links, ", h.stats.bytes / (1 << 20), " MiB (the matrix of as many patches: ",
-            double(formFactorMatrixBytes(h.stats.leaves)) / (1 << 20), " MiB), ", h.stats.rays, " rays");
+    logInfo("hierarchical: ", h.stats.leaves, " leaves (", h.stats.elements, " elements over ", h.stats.roots,
+            " roots), ", h.stats.links, " links, ", h.stats.bytes / (1 << 20),
+            " MiB (the matrix of as many patches: ", double(formFactorMatrixBytes(h.stats.leaves)) / (1 << 20),
+            " MiB), ", h.stats.rays, " rays");
     // The equation at every vertex costs vertices x leaves: past the matrix's reach, the mean.
-    if (options.gatherVertices) logInfo("hierarchical: displayed vertex radiosity is the mean of the patches around each vertex");
+    if (options.gatherVertices)
+        logInfo("hierarchical: displayed vertex radiosity is the mean of the patches around each vertex");
     r.corners = interpolateCorners(r.patches, r.solution.display);
 }
 
@@ -198,11 +200,13 @@ std::string chooseSolver(const Scene& scene, const SolveOptions& options, size_t
         return "gauss-seidel";
     }
     if (n <= kAutoMatrixPatches && (budget <= 0 || matrix <= 0.5 * budget)) {
-        why = cat("the matrix of ", n, " patches takes ", matrix / mib, " MiB", budget > 0 ? cat(" of ", budget / mib, " MiB available") : "");
+        why = cat("the matrix of ", n, " patches takes ", matrix / mib, " MiB",
+                  budget > 0 ? cat(" of ", budget / mib, " MiB available") : "");
         return "gauss-seidel";
     }
     why = cat("the matrix of ", n, " patches would take ", matrix / mib, " MiB",
-              n > kAutoMatrixPatches ? cat(" and its form factors grow as n^2 past ", kAutoMatrixPatches, " patches") : " (more than half the memory)",
+              n > kAutoMatrixPatches ? cat(" and its form factors grow as n^2 past ", kAutoMatrixPatches, " patches")
+                                     : " (more than half the memory)",
               "; the hierarchy's links grow about as n");
     return "hierarchical";
 }
@@ -210,8 +214,9 @@ std::string chooseSolver(const Scene& scene, const SolveOptions& options, size_t
 }  // namespace
 
 std::vector<SolverInfo> solverRegistry() {
-    std::vector<SolverInfo> out{{"auto", "the matrix when it fits and the scene is small or has mirrors or glass, else the "
-                                         "hierarchy (the log and report say which and why)"}};
+    std::vector<SolverInfo> out{{"auto",
+                                 "the matrix when it fits and the scene is small or has mirrors or glass, else the "
+                                 "hierarchy (the log and report say which and why)"}};
     for (const std::string& name : solverNames()) out.push_back({name, solverSummary(name)});
     out.push_back({"hierarchical", "links between element quadtrees, about linear storage (diffuse scenes)"});
     return out;
@@ -242,7 +247,8 @@ SolveResult solveScene(const Scene& scene, const SolveOptions& options, const St
     }
     if (r.solverName == "hierarchical") {
         if (options.refine.tolerance > 0)
-            throw Error("--refine works on the matrix solve's mesh; the hierarchy refines itself (use one or the other)");
+            throw Error(
+                "--refine works on the matrix solve's mesh; the hierarchy refines itself (use one or the other)");
         solveHierarchical(scene, options, r);
         return r;
     }
@@ -253,9 +259,12 @@ SolveResult solveScene(const Scene& scene, const SolveOptions& options, const St
     const RefineSettings& refine = options.refine;
     if (!(refine.tolerance > 0)) return r;
     // The finest patches allowed: maxLevels halvings of the first mesh's edge length.
-    const double firstArea = std::accumulate(r.patches.area.begin(), r.patches.area.end(), 0.0) / double(r.patches.size());
+    const double firstArea =
+        std::accumulate(r.patches.area.begin(), r.patches.area.end(), 0.0) / double(r.patches.size());
     const double minArea = firstArea / std::pow(4.0, refine.maxLevels);
-    r.refinement.push_back({r.patches.size(), 0, 0, 0, r.secondsMeshing + r.secondsFormFactors + r.secondsSpecular + r.secondsSolve + r.secondsVertices});
+    r.refinement.push_back(
+        {r.patches.size(), 0, 0, 0,
+         r.secondsMeshing + r.secondsFormFactors + r.secondsSpecular + r.secondsSolve + r.secondsVertices});
     for (int round = 1; round <= refine.maxRounds; ++round) {
         Timer timer;
         const size_t n = r.patches.size();
@@ -263,11 +272,13 @@ SolveResult solveScene(const Scene& scene, const SolveOptions& options, const St
         // judges the patches that the last one left, so that the budget goes where light changes.
         const size_t budgetRoom = size_t(refine.maxPatches) > n ? (size_t(refine.maxPatches) - n) / 3 : 0;
         const size_t room = std::min(budgetRoom, std::max<size_t>(1, n / 4));
-        SplitChoice choice = chooseSplits(r.patches, r.system, r.F, r.solution.B, r.corners, *r.rays, refine, minArea, room);
+        SplitChoice choice =
+            chooseSplits(r.patches, r.system, r.F, r.solution.B, r.corners, *r.rays, refine, minArea, room);
         const size_t chosen = size_t(std::count(choice.split.begin(), choice.split.end(), 1));
         if (chosen == 0) {
-            logInfo("refinement: converged after ", round - 1, " rounds: no patch differs from its neighbours by more than ",
-                    refine.tolerance, (budgetRoom == 0 ? " or the patch budget is spent" : ""));
+            logInfo("refinement: converged after ", round - 1,
+                    " rounds: no patch differs from its neighbours by more than ", refine.tolerance,
+                    (budgetRoom == 0 ? " or the patch budget is spent" : ""));
             break;
         }
         PatchSet finer = splitPatches(r.patches, choice.split);
@@ -281,14 +292,15 @@ SolveResult solveScene(const Scene& scene, const SolveOptions& options, const St
             break;
         }
         const size_t made = size_t(std::count(choice.split.begin(), choice.split.end(), 1));
-        logInfo("refinement round ", round, ": split ", made, " of ", n, " patches (", choice.byGradient, " by gradient, ",
-                choice.byShadow, " by shadow edges, ", made - std::min(made, chosen), " more for the 2:1 rule) -> ",
-                finer.size(), " patches");
+        logInfo("refinement round ", round, ": split ", made, " of ", n, " patches (", choice.byGradient,
+                " by gradient, ", choice.byShadow, " by shadow edges, ", made - std::min(made, chosen),
+                " more for the 2:1 rule) -> ", finer.size(), " patches");
         r.patches = std::move(finer);
         r.secondsMeshing += timer.seconds();
         solveMatrix(scene, matrix, observer, r);
-        r.refinement.push_back({r.patches.size(), choice.byGradient, choice.byShadow, made,
-                                r.secondsMeshing + r.secondsFormFactors + r.secondsSpecular + r.secondsSolve + r.secondsVertices});
+        r.refinement.push_back(
+            {r.patches.size(), choice.byGradient, choice.byShadow, made,
+             r.secondsMeshing + r.secondsFormFactors + r.secondsSpecular + r.secondsSolve + r.secondsVertices});
     }
     return r;
 }

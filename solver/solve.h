@@ -20,37 +20,37 @@ struct SolveOptions {
     MeshingOptions meshing;
     FormFactorSettings formFactors;
     SpecularSettings specular;
-    std::string solver = "auto";   // auto: the matrix when it fits and the scene is small, else the hierarchy
-    HierarchySettings hierarchy;   // --solver hierarchical (its minArea follows from `meshing`)
-    int hierarchyRoots = 256;      // the hierarchy's roots: the scene meshed this coarsely
+    std::string solver = "auto";  // auto: the matrix when it fits and the scene is small, else the hierarchy
+    HierarchySettings hierarchy;  // --solver hierarchical (its minArea follows from `meshing`)
+    int hierarchyRoots = 256;     // the hierarchy's roots: the scene meshed this coarsely
     SolverSettings solverSettings;
-    RefineSettings refine;      // adaptive subdivision after the first solve (off by default)
-    bool gatherVertices = true; // displayed corner radiosity by the equation at each vertex (else the mean around it)
+    RefineSettings refine;       // adaptive subdivision after the first solve (off by default)
+    bool gatherVertices = true;  // displayed corner radiosity by the equation at each vertex (else the mean around it)
     double maxMemoryBytes = 0;   // 0: what the machine has available
 };
 
 // One round of adaptive subdivision: the mesh it solved and what it cost so far.
 struct RefineRound {
     size_t patches = 0;
-    size_t byGradient = 0, byShadow = 0, split = 0;   // patches marked by each test, and split in all
-    double secondsSoFar = 0;                          // meshing, form factors and solves, all rounds to here
+    size_t byGradient = 0, byShadow = 0, split = 0;  // patches marked by each test, and split in all
+    double secondsSoFar = 0;                         // meshing, form factors and solves, all rounds to here
 };
 
 struct SolveResult {
-    SolveOptions options;       // the settings (and seed, options.formFactors.seed) that made this result
-    std::string solverName;     // the solver that ran (auto resolved)
-    std::string solverReason;   // why auto chose it (empty when named)
-    HierarchyStats hierarchy;   // --solver hierarchical only
+    SolveOptions options;      // the settings (and seed, options.formFactors.seed) that made this result
+    std::string solverName;    // the solver that ran (auto resolved)
+    std::string solverReason;  // why auto chose it (empty when named)
+    HierarchyStats hierarchy;  // --solver hierarchical only
     PatchSet patches;
-    std::shared_ptr<RayScene> rays;   // the patches' ray-tracing scene, for views of the result
+    std::shared_ptr<RayScene> rays;  // the patches' ray-tracing scene, for views of the result
     FormFactorMatrix F;
     RadiositySystem system;
     RadiositySolution solution;
-    CornerValues corners;             // the displayed radiosity at each patch corner
+    CornerValues corners;  // the displayed radiosity at each patch corner
     PowerBalance power;
     double secondsMeshing = 0, secondsFormFactors = 0, secondsSpecular = 0, secondsSolve = 0, secondsVertices = 0;
-    double rowSumMin = 0, rowSumMax = 0;   // front-face row sums (closed scenes: 1 within error)
-    std::vector<RefineRound> refinement;   // empty without --refine; else the first solve, then each round
+    double rowSumMin = 0, rowSumMax = 0;  // front-face row sums (closed scenes: 1 within error)
+    std::vector<RefineRound> refinement;  // empty without --refine; else the first solve, then each round
 };
 
 SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer = {});

@@ -19,10 +19,10 @@ namespace penumbra {
 struct SurfaceHit {
     bool found = false;
     Vec3 point = Vec3::Zero();
-    Vec3 normal = Vec3::UnitZ();   // unit normal of the front side (outward on spheres)
+    Vec3 normal = Vec3::UnitZ();  // unit normal of the front side (outward on spheres)
     double t = 0;
-    int patch = -1;                // patch hit; -1 on exact spheres
-    double u = 0, v = 0;           // Embree's coordinates on the patch
+    int patch = -1;       // patch hit; -1 on exact spheres
+    double u = 0, v = 0;  // Embree's coordinates on the patch
     int object = -1;
     const Material* material = nullptr;
     // True if a ray travelling along `dir` arrived on the front side.
@@ -30,9 +30,9 @@ struct SurfaceHit {
 };
 
 struct EmitterSample {
-    Vec3 point, normal;     // on an emitting patch, its front normal
-    Rgb radiance;           // L_e
-    double pdfArea = 0;     // density of this point per m^2 over all emitters
+    Vec3 point, normal;  // on an emitting patch, its front normal
+    Rgb radiance;        // L_e
+    double pdfArea = 0;  // density of this point per m^2 over all emitters
     int patch = -1;
 };
 
@@ -74,8 +74,8 @@ private:
     std::vector<RaySphere> spheres_;
     std::vector<int> sphereObject_;
     std::vector<int> emitterPatch_;
-    std::vector<double> emitterCdf_;      // cumulative, normalised
-    std::vector<double> emitterPdf_;      // per patch, per m^2
+    std::vector<double> emitterCdf_;  // cumulative, normalised
+    std::vector<double> emitterPdf_;  // per patch, per m^2
     Rgb emittedPower_ = Rgb::Zero();
     bool hasSpecular_ = false;
     double diagonal_ = 1;
@@ -97,19 +97,19 @@ std::optional<SpecularBranch> sampleSpecular(const SurfaceHit& hit, const Vec3& 
 
 // How a walk through mirrors and glass ended.
 enum class WalkEnd {
-    Diffuse,    // on a diffuse surface (front or back face: see `hit`)
-    Escaped,    // out of the scene
-    Absorbed,   // on the back of a mirror
-    TooDeep,    // more bounces than allowed, or too little throughput left
+    Diffuse,   // on a diffuse surface (front or back face: see `hit`)
+    Escaped,   // out of the scene
+    Absorbed,  // on the back of a mirror
+    TooDeep,   // more bounces than allowed, or too little throughput left
 };
 
 struct SpecularWalk {
     WalkEnd end = WalkEnd::Escaped;
-    SurfaceHit hit;          // the diffuse surface reached (End::Diffuse), else the last specular hit
-    Vec3 dir = Vec3::Zero(); // the direction that arrived there (or left the scene)
+    SurfaceHit hit;           // the diffuse surface reached (End::Diffuse), else the last specular hit
+    Vec3 dir = Vec3::Zero();  // the direction that arrived there (or left the scene)
     Rgb throughput = Rgb::Ones();
-    int bounces = 0;         // specular bounces taken
-    double length = 0;       // metres travelled, from the first hit's ray origin
+    int bounces = 0;    // specular bounces taken
+    double length = 0;  // metres travelled, from the first hit's ray origin
 };
 
 // The one specular walk every light path uses (the solve's transport, the photons, the gather rays,
@@ -154,8 +154,8 @@ SpecularWalk walkSpecular(const SceneTracer& tracer, SurfaceHit first, Vec3 dir,
         w.length += w.hit.t;
     }
 }
-inline SpecularWalk walkSpecular(const SceneTracer& tracer, SurfaceHit first, const Vec3& dir, Rng& rng,
-                                 int maxBounces, double minThroughput = 0) {
+inline SpecularWalk walkSpecular(const SceneTracer& tracer, SurfaceHit first, const Vec3& dir, Rng& rng, int maxBounces,
+                                 double minThroughput = 0) {
     return walkSpecular(tracer, std::move(first), dir, rng, maxBounces, minThroughput, [](int, const Rgb&) {});
 }
 

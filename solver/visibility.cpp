@@ -24,7 +24,7 @@ struct alignas(64) RayCounter {
     std::atomic<uint64_t> rays{0};
 };
 std::mutex g_countersMutex;
-std::deque<RayCounter> g_counters;   // a deque keeps addresses stable as threads register
+std::deque<RayCounter> g_counters;  // a deque keeps addresses stable as threads register
 
 RayCounter& threadCounter() {
     thread_local RayCounter* mine = [] {
@@ -67,7 +67,8 @@ RayScene::RayScene(const PatchSet& patches, const std::vector<RaySphere>& sphere
     : impl_(std::make_unique<Impl>()) {
     prepareTracingThread();
     impl_->device = rtcNewDevice("verbose=0");
-    if (!impl_->device) throw Error(cat("Embree: cannot create a device (error ", int(rtcGetDeviceError(nullptr)), ")"));
+    if (!impl_->device)
+        throw Error(cat("Embree: cannot create a device (error ", int(rtcGetDeviceError(nullptr)), ")"));
     rtcSetDeviceErrorFunction(impl_->device, embreeError, &impl_->error);
     impl_->scene = rtcNewScene(impl_->device);
     rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
@@ -76,10 +77,10 @@ RayScene::RayScene(const PatchSet& patches, const std::vector<RaySphere>& sphere
     rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
     RTCGeometry geom = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_QUAD);
     const size_t n = patches.size();
-    auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                           3 * sizeof(float), 4 * n));
-    auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4,
-                                                              4 * sizeof(unsigned), n));
+    auto* vb = static_cast<float*>(
+        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), 4 * n));
+    auto* ib = static_cast<unsigned*>(
+        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned), n));
     for (size_t i = 0; i < n; ++i)
         for (size_t k = 0; k < 4; ++k) {
             // A skipped patch collapses to a point, which no ray hits; ids stay patch indices.

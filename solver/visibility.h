@@ -20,12 +20,12 @@ struct RaySphere {
 };
 
 struct Hit {
-    int patch = -1;          // the patch hit, or -1
-    int sphere = -1;         // the exact sphere hit (index into the constructor's list), or -1
+    int patch = -1;   // the patch hit, or -1
+    int sphere = -1;  // the exact sphere hit (index into the constructor's list), or -1
     bool found() const { return patch >= 0 || sphere >= 0; }
     double t = 0;
-    double u = 0, v = 0;     // Embree's primitive coordinates (quad parametrisation)
-    Vec3 geometricNormal;    // unnormalised, as Embree reports it
+    double u = 0, v = 0;   // Embree's primitive coordinates (quad parametrisation)
+    Vec3 geometricNormal;  // unnormalised, as Embree reports it
 };
 
 class RayScene {

@@ -2,16 +2,15 @@
 // loader, and sums of patch-level results per object.
 #pragma once
 
-#include <cmath>
-#include <filesystem>
-#include <fstream>
-#include <string>
-
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <array>
+#include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
 
 #include "core/error.h"
 #include "mesh/scene.h"
@@ -31,7 +30,7 @@ constexpr bool kSanitized = false;
 
 struct CommandResult {
     int status;
-    std::string output;   // stderr and stdout together
+    std::string output;  // stderr and stdout together
 };
 
 // Runs the penumbra executable with `args` (a shell command line) and collects what it prints.
@@ -104,12 +103,13 @@ inline double parallelRectangles(double a, double b, double c) {
 // A unit cube of six inward-facing quads of material "m", except the top, of material `top`.
 // `materials` is the body of the "materials" object; `extra` (objects, each with a leading comma)
 // and `tail` (more top-level keys, with a leading comma) are appended as given.
-inline std::string cubeScene(const std::string& materials, const std::string& top = "m",
-                             const std::string& extra = "", const std::string& tail = "") {
+inline std::string cubeScene(const std::string& materials, const std::string& top = "m", const std::string& extra = "",
+                             const std::string& tail = "") {
     return R"({"materials": {)" + materials + R"(},
       "objects": [
         {"name": "bottom", "type": "quad", "material": "m", "vertices": [[0,0,0],[0,0,1],[1,0,1],[1,0,0]]},
-        {"name": "top",    "type": "quad", "material": ")" + top + R"(", "vertices": [[0,1,0],[1,1,0],[1,1,1],[0,1,1]]},
+        {"name": "top",    "type": "quad", "material": ")" +
+           top + R"(", "vertices": [[0,1,0],[1,1,0],[1,1,1],[0,1,1]]},
         {"name": "left",   "type": "quad", "material": "m", "vertices": [[0,0,0],[0,1,0],[0,1,1],[0,0,1]]},
         {"name": "right",  "type": "quad", "material": "m", "vertices": [[1,0,0],[1,0,1],[1,1,1],[1,1,0]]},
         {"name": "back",   "type": "quad", "material": "m", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]},
@@ -153,7 +153,8 @@ inline std::string lampOverFloor(bool occluder) {
          "vertices": [[-0.1,-0.1,1],[-0.1,0.1,1],[0.1,0.1,1],[0.1,-0.1,1]]})") +
            (occluder ? R"(,
         {"name": "square", "type": "quad", "material": "black",
-         "vertices": [[-0.2,-0.2,0.5],[0.2,-0.2,0.5],[0.2,0.2,0.5],[-0.2,0.2,0.5]]})" : "") +
+         "vertices": [[-0.2,-0.2,0.5],[0.2,-0.2,0.5],[0.2,0.2,0.5],[-0.2,0.2,0.5]]})"
+                     : "") +
            "]}";
 }
 
@@ -179,7 +180,8 @@ inline void expectBalanceByRays(const Scene& scene, const SolveResult& r, double
         EXPECT_NEAR(r.power.totalAbsorbed[c] + escape.escaped[c], emitted, allowed)
             << what << " channel " << c << ": absorbed " << r.power.totalAbsorbed[c] << " W, escaped by rays "
             << escape.escaped[c] << " +- " << escape.standardError[c] << " W";
-        EXPECT_NEAR(r.power.escaped[c], escape.escaped[c], allowed) << what << " channel " << c << ": the solve's escaped power";
+        EXPECT_NEAR(r.power.escaped[c], escape.escaped[c], allowed)
+            << what << " channel " << c << ": the solve's escaped power";
     }
 }
 inline void expectBalanceByRays(const std::string& json, const SolveResult& r, double bias = 2e-3, int rays = 1024,

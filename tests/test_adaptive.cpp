@@ -33,7 +33,8 @@ TEST(Refinement, SplitsKeepTheAreaTheTwoToOneRuleAndLeaveNoCrack) {
         std::vector<char> split(p.size(), 0);
         size_t nearest = 0;
         for (size_t i = 0; i < p.size(); ++i)
-            if (p.object[i] == 0 && (p.centroid[i] - target).norm() < (p.centroid[nearest] - target).norm()) nearest = i;
+            if (p.object[i] == 0 && (p.centroid[i] - target).norm() < (p.centroid[nearest] - target).norm())
+                nearest = i;
         split[nearest] = 1;
         const size_t n = p.size();
         p = splitPatches(p, split);
@@ -45,7 +46,8 @@ TEST(Refinement, SplitsKeepTheAreaTheTwoToOneRuleAndLeaveNoCrack) {
     // 2:1: no vertex sits at a quarter of any patch's edge (a neighbour two levels finer).
     std::set<std::array<long long, 4>> vertexAt;
     auto key = [](int object, const Vec3& x) {
-        return std::array<long long, 4>{object, std::llround(x.x() * 1e9), std::llround(x.y() * 1e9), std::llround(x.z() * 1e9)};
+        return std::array<long long, 4>{object, std::llround(x.x() * 1e9), std::llround(x.y() * 1e9),
+                                        std::llround(x.z() * 1e9)};
     };
     for (size_t i = 0; i < p.size(); ++i)
         for (int k = 0; k < p.cornerCount[i]; ++k) vertexAt.insert(key(p.object[i], p.corners[i][size_t(k)]));
@@ -54,7 +56,8 @@ TEST(Refinement, SplitsKeepTheAreaTheTwoToOneRuleAndLeaveNoCrack) {
             const Vec3& a = p.corners[i][size_t(k)];
             const Vec3& b = p.corners[i][size_t((k + 1) % p.cornerCount[i])];
             const Vec3 m = 0.5 * (a + b);
-            EXPECT_FALSE(vertexAt.count(key(p.object[i], 0.5 * (a + m))) || vertexAt.count(key(p.object[i], 0.5 * (m + b))))
+            EXPECT_FALSE(vertexAt.count(key(p.object[i], 0.5 * (a + m))) ||
+                         vertexAt.count(key(p.object[i], 0.5 * (m + b))))
                 << "patch " << i << " edge " << k;
         }
 
@@ -66,7 +69,8 @@ TEST(Refinement, SplitsKeepTheAreaTheTwoToOneRuleAndLeaveNoCrack) {
     for (size_t i = 0; i < p.size(); ++i) value[i] = Rgb::Constant(1 + p.centroid[i].x() + 2 * p.centroid[i].y());
     const CornerValues corners = interpolateCorners(p, value);
     for (const HangingVertex& h : hanging) {
-        const Rgb mean = 0.5 * (corners[size_t(h.patch)][size_t(h.cornerA)] + corners[size_t(h.patch)][size_t(h.cornerB)]);
+        const Rgb mean =
+            0.5 * (corners[size_t(h.patch)][size_t(h.cornerA)] + corners[size_t(h.patch)][size_t(h.cornerB)]);
         for (size_t j = 0; j < p.size(); ++j)
             for (int k = 0; k < p.cornerCount[j]; ++k)
                 if (p.cornerVertex[j][size_t(k)] == h.vertex) {

@@ -7,9 +7,8 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <sstream>
-
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "fixtures.h"
 
@@ -55,17 +54,18 @@ bool isPng(const std::string& path) {
 TEST(BenchSlow, QuickSweepWritesTheTradeAndErrorFallsAsCostRises) {
     const std::string out = test::tempDir() + "/bench", cache = test::tempDir() + "/bench-cache";
     fs::remove_all(out);
-    const test::CommandResult r =
-        test::run(cat("bench ", PENUMBRA_SOURCE_DIR, "/scenes/cornell-box.json --out ", out, " --quick --cache ", cache));
+    const test::CommandResult r = test::run(
+        cat("bench ", PENUMBRA_SOURCE_DIR, "/scenes/cornell-box.json --out ", out, " --quick --cache ", cache));
     ASSERT_EQ(r.status, 0) << r.output;
-    for (const char* file : {"trade.csv", "bench.json", "summary.md", "plots.gp"}) EXPECT_TRUE(fs::exists(fs::path(out) / file)) << file;
+    for (const char* file : {"trade.csv", "bench.json", "summary.md", "plots.gp"})
+        EXPECT_TRUE(fs::exists(fs::path(out) / file)) << file;
     EXPECT_TRUE(isPng(out + "/error-time.png"));
     EXPECT_TRUE(isPng(out + "/cost-patches.png"));
     EXPECT_FALSE(fs::is_empty(cache)) << "the path-traced reference is not cached";
 
     const auto rows = readCsv(out + "/trade.csv");
     ASSERT_GE(rows.size(), 10u);
-    std::vector<std::pair<double, double>> path, gather;   // (spp or seconds, error)
+    std::vector<std::pair<double, double>> path, gather;  // (spp or seconds, error)
     for (const auto& row : rows) {
         const double error = std::stod(row.at("pooled_l1_blurred"));
         EXPECT_GT(error, 0.0);

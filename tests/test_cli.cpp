@@ -2,13 +2,11 @@
 // clear error naming the file, object or field, a non-zero exit and no output; good input gets a
 // report that ../shared/tools/check-report accepts.
 #include <gtest/gtest.h>
-
 #include <sys/wait.h>
 
 #include <array>
 #include <cstdio>
 #include <filesystem>
-
 #include <nlohmann/json.hpp>
 
 #include "fixtures.h"
@@ -27,14 +25,16 @@ using test::run;
 const char* kLamp = R"("lamp": {"type": "diffuse", "reflectance": 0.5, "emission": 1})";
 
 std::string sceneWith(const std::string& materials, const std::string& objects) {
-    return cat(R"({"materials": {)", kLamp, materials.empty() ? "" : ", ", materials, R"(}, "objects": [)",
-               R"({"name": "light", "type": "quad", "material": "lamp", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]})",
-               objects.empty() ? "" : ", ", objects, "]}");
+    return cat(
+        R"({"materials": {)", kLamp, materials.empty() ? "" : ", ", materials, R"(}, "objects": [)",
+        R"({"name": "light", "type": "quad", "material": "lamp", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]})",
+        objects.empty() ? "" : ", ", objects, "]}");
 }
 
 // Solves `json` expecting failure: non-zero exit, one error line naming `file` and every fragment,
 // and no output directory.
-void expectRefused(const std::string& json, std::initializer_list<const char*> fragments, const std::string& extra = "") {
+void expectRefused(const std::string& json, std::initializer_list<const char*> fragments,
+                   const std::string& extra = "") {
     const std::string path = test::writeText("bad.json", json);
     const std::string out = test::tempDir() + "/refused-out";
     fs::remove_all(out);
@@ -44,7 +44,8 @@ void expectRefused(const std::string& json, std::initializer_list<const char*> f
     size_t errors = 0;
     for (size_t at = r.output.find("error:"); at != std::string::npos; at = r.output.find("error:", at + 1)) ++errors;
     EXPECT_EQ(errors, 1u) << r.output;
-    for (const char* f : fragments) EXPECT_NE(r.output.find(f), std::string::npos) << "missing '" << f << "' in: " << r.output;
+    for (const char* f : fragments)
+        EXPECT_NE(r.output.find(f), std::string::npos) << "missing '" << f << "' in: " << r.output;
     EXPECT_FALSE(fs::exists(out)) << "output written despite the error";
 }
 
@@ -55,8 +56,11 @@ TEST(CliErrors, MalformedJsonGivesLineAndColumn) {
 }
 
 TEST(CliErrors, MaterialProblems) {
-    expectRefused(sceneWith("", R"({"name": "floor", "type": "quad", "material": "nope", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]})"),
-                  {"objects[1] 'floor'", "unknown material 'nope'"});
+    expectRefused(
+        sceneWith(
+            "",
+            R"({"name": "floor", "type": "quad", "material": "nope", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]})"),
+        {"objects[1] 'floor'", "unknown material 'nope'"});
     expectRefused(sceneWith("", R"({"name": "floor", "type": "quad", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]})"),
                   {"objects[1] 'floor'", "'material'"});
     expectRefused(sceneWith(R"("w": {"type": "diffuse", "reflectance": [0.5, 1.2, 0.5]})", ""),
@@ -71,21 +75,36 @@ TEST(CliErrors, MaterialProblems) {
 }
 
 TEST(CliErrors, GeometryProblems) {
-    expectRefused(sceneWith("", R"({"name": "q", "type": "quad", "material": "lamp", "vertices": [[0,0,1],[1,0,1],[2,0,1],[3,0,1]]})"),
-                  {"'q'", "degenerate quad"});
-    expectRefused(sceneWith("", R"({"name": "q", "type": "quad", "material": "lamp", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1.03]]})"),
-                  {"'q'", "not planar"});
-    expectRefused(sceneWith("", R"({"name": "t", "type": "triangle", "material": "lamp", "vertices": [[0,0,1],[1,1,1],[2,2,1]]})"),
-                  {"'t'", "zero-area triangle"});
-    expectRefused(sceneWith("", R"({"name": "t", "type": "triangle", "material": "lamp", "vertices": [[0,0,1],[1,1e999,1],[2,2,1]]})"),
-                  {"bad.json", "1e999", "finite"});
-    expectRefused(sceneWith("", R"({"name": "t", "type": "triangle", "material": "lamp", "vertices": [[0,0,1],[1e12,1,1],[2,2,1]]})"),
-                  {"'t'", "unit_scale"});
-    expectRefused(sceneWith("", R"({"name": "s", "type": "sphere", "material": "lamp", "center": [0,0,0], "radius": -1})"),
-                  {"'s'", "radius"});
-    expectRefused(sceneWith("", R"({"name": "x", "type": "cone", "material": "lamp"})"), {"'x'", "unknown object type 'cone'"});
-    expectRefused(sceneWith("", R"({"name": "light", "type": "triangle", "material": "lamp", "vertices": [[0,0,1],[1,0,1],[0,1,1]]})"),
-                  {"duplicate object name 'light'"});
+    expectRefused(
+        sceneWith(
+            "", R"({"name": "q", "type": "quad", "material": "lamp", "vertices": [[0,0,1],[1,0,1],[2,0,1],[3,0,1]]})"),
+        {"'q'", "degenerate quad"});
+    expectRefused(
+        sceneWith(
+            "",
+            R"({"name": "q", "type": "quad", "material": "lamp", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1.03]]})"),
+        {"'q'", "not planar"});
+    expectRefused(
+        sceneWith("",
+                  R"({"name": "t", "type": "triangle", "material": "lamp", "vertices": [[0,0,1],[1,1,1],[2,2,1]]})"),
+        {"'t'", "zero-area triangle"});
+    expectRefused(
+        sceneWith(
+            "", R"({"name": "t", "type": "triangle", "material": "lamp", "vertices": [[0,0,1],[1,1e999,1],[2,2,1]]})"),
+        {"bad.json", "1e999", "finite"});
+    expectRefused(
+        sceneWith("",
+                  R"({"name": "t", "type": "triangle", "material": "lamp", "vertices": [[0,0,1],[1e12,1,1],[2,2,1]]})"),
+        {"'t'", "unit_scale"});
+    expectRefused(
+        sceneWith("", R"({"name": "s", "type": "sphere", "material": "lamp", "center": [0,0,0], "radius": -1})"),
+        {"'s'", "radius"});
+    expectRefused(sceneWith("", R"({"name": "x", "type": "cone", "material": "lamp"})"),
+                  {"'x'", "unknown object type 'cone'"});
+    expectRefused(
+        sceneWith(
+            "", R"({"name": "light", "type": "triangle", "material": "lamp", "vertices": [[0,0,1],[1,0,1],[0,1,1]]})"),
+        {"duplicate object name 'light'"});
     expectRefused(R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}}, "objects": []})", {"empty"});
 }
 
@@ -105,7 +124,8 @@ TEST(CliErrors, ClosedWhiteFurnaceHasNoSteadyState) {
 }
 
 TEST(CliErrors, OptionProblems) {
-    expectRefused(sceneWith("", ""), {"unknown solver 'magic'", "auto", "jacobi", "gauss-seidel", "southwell", "hierarchical"},
+    expectRefused(sceneWith("", ""),
+                  {"unknown solver 'magic'", "auto", "jacobi", "gauss-seidel", "southwell", "hierarchical"},
                   "--solver magic");
     expectRefused(sceneWith("", ""), {"--max-memory", "patches fit"}, "--solver gauss-seidel --max-memory 0.000001");
     expectRefused(sceneWith("", ""), {"--refine"}, "--refine -1");
@@ -116,7 +136,8 @@ TEST(CliErrors, OptionProblems) {
 }
 
 TEST(Cli, SceneWithoutEmitterWarnsAndSolvesToBlack) {
-    const std::string path = test::writeText("dark.json", R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
+    const std::string path =
+        test::writeText("dark.json", R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
       "objects": [{"name": "q", "type": "quad", "material": "m", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}]})");
     const CommandResult r = run(cat("solve ", path, " --out ", test::tempDir(), "/dark --patches 4"));
     EXPECT_EQ(r.status, 0) << r.output;
@@ -149,7 +170,7 @@ TEST(Cli, CornellBoxSolvesToAConformingReportAndRendersFromTheSolution) {
     EXPECT_EQ(checked, 0);
 
     const CommandResult render = run(cat("render ", scene, " --solution ", out, " --integrator radiosity --out ", out,
-                               "/view.exr --resolution 64x48 --quiet"));
+                                         "/view.exr --resolution 64x48 --quiet"));
     EXPECT_EQ(render.status, 0) << render.output;
     EXPECT_TRUE(fs::exists(out + "/view.exr"));
     EXPECT_TRUE(fs::exists(out + "/view.png"));
@@ -162,17 +183,19 @@ TEST(Cli, CornellBoxSolvesToAConformingReportAndRendersFromTheSolution) {
     EXPECT_NE(gather.output.find("no photon pass"), std::string::npos) << gather.output;
     EXPECT_TRUE(fs::exists(out + "/gather.exr"));
     EXPECT_TRUE(fs::exists(out + "/gather.png"));
-    const CommandResult unknown = run(cat("render ", scene, " --solution ", out, " --integrator whitted --out ", out,
-                                          "/unknown.exr"));
+    const CommandResult unknown =
+        run(cat("render ", scene, " --solution ", out, " --integrator whitted --out ", out, "/unknown.exr"));
     EXPECT_NE(unknown.status, 0);
     EXPECT_NE(unknown.output.find("--integrator"), std::string::npos) << unknown.output;
     EXPECT_NE(unknown.output.find("known: final-gather, path, radiosity"), std::string::npos) << unknown.output;
     EXPECT_FALSE(fs::exists(out + "/unknown.exr"));
 
     // A solution belongs to its scene: another scene is refused, and nothing is written.
-    const std::string other = test::writeText("other.json", sceneWith("", "") );
-    const CommandResult mismatch = run(cat("render ", other, " --solution ", out, " --integrator radiosity --camera "
-                                 "'{\"position\": [0.5,0.5,3], \"look_at\": [0.5,0.5,0]}' --out ", out, "/other.exr"));
+    const std::string other = test::writeText("other.json", sceneWith("", ""));
+    const CommandResult mismatch = run(cat("render ", other, " --solution ", out,
+                                           " --integrator radiosity --camera "
+                                           "'{\"position\": [0.5,0.5,3], \"look_at\": [0.5,0.5,0]}' --out ",
+                                           out, "/other.exr"));
     EXPECT_NE(mismatch.status, 0);
     EXPECT_NE(mismatch.output.find("another version"), std::string::npos) << mismatch.output;
     EXPECT_FALSE(fs::exists(out + "/other.exr"));
@@ -214,8 +237,9 @@ TEST(Cli, GlassSceneRendersWithoutASolutionAndAgainstThePathTracer) {
     const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-glass.json";
     const std::string out = test::tempDir() + "/glass";
     fs::remove_all(out);
-    const CommandResult gather = run(cat("render ", scene, " --out ", out, "/gather.exr --patches 200 --resolution 24x24",
-                                         " --spp 4 --gather-rays 4 --photons 20000"));
+    const CommandResult gather =
+        run(cat("render ", scene, " --out ", out, "/gather.exr --patches 200 --resolution 24x24",
+                " --spp 4 --gather-rays 4 --photons 20000"));
     ASSERT_EQ(gather.status, 0) << gather.output;
     EXPECT_NE(gather.output.find("solving first"), std::string::npos) << gather.output;
     EXPECT_NE(gather.output.find("caustic photons"), std::string::npos) << gather.output;
@@ -252,8 +276,8 @@ TEST(Cli, GlassSceneRendersWithoutASolutionAndAgainstThePathTracer) {
             }
     EXPECT_NEAR(printed, l1 / total, 1e-3) << compare.output;
     EXPECT_LT(printed, 0.15) << "final gather against the path tracer, 24 x 24, few samples";
-    const CommandResult mismatch = run(cat("compare ", out, "/gather.exr ", std::string(PENUMBRA_SOURCE_DIR),
-                                           "/docs/images/cornell-radiosity.png"));
+    const CommandResult mismatch = run(
+        cat("compare ", out, "/gather.exr ", std::string(PENUMBRA_SOURCE_DIR), "/docs/images/cornell-radiosity.png"));
     EXPECT_NE(mismatch.status, 0);
 }
 
@@ -270,8 +294,8 @@ TEST(Cli, OrbitViewsDifferAndEachMatchesARenderOfItsCamera) {
     const std::string out = test::tempDir() + "/orbit";
     fs::remove_all(out);
     ASSERT_EQ(run(cat("solve ", scene, " --out ", out, "/solve --patches 200 --quiet")).status, 0);
-    const CommandResult orbit = run(cat("render ", scene, " --solution ", out, "/solve --integrator radiosity --orbit 4 --out ",
-                                        out, "/view.exr --quiet"));
+    const CommandResult orbit = run(cat("render ", scene, " --solution ", out,
+                                        "/solve --integrator radiosity --orbit 4 --out ", out, "/view.exr --quiet"));
     ASSERT_EQ(orbit.status, 0) << orbit.output;
     std::ifstream listFile(out + "/view-orbit.json");
     const nlohmann::json list = nlohmann::json::parse(listFile);
@@ -289,8 +313,9 @@ TEST(Cli, OrbitViewsDifferAndEachMatchesARenderOfItsCamera) {
     // Each view is the render of its camera, as `render --camera` makes it.
     for (size_t k = 0; k < views.size(); ++k) {
         const std::string camera = list["views"][k]["camera"].dump();
-        const CommandResult single = run(cat("render ", scene, " --solution ", out, "/solve --integrator radiosity --camera '",
-                                             camera, "' --out ", out, "/single.exr --quiet"));
+        const CommandResult single =
+            run(cat("render ", scene, " --solution ", out, "/solve --integrator radiosity --camera '", camera,
+                    "' --out ", out, "/single.exr --quiet"));
         ASSERT_EQ(single.status, 0) << single.output;
         const ImageError e = compareImages(readLinearImage(out + "/single.exr"), views[k]);
         EXPECT_LT(e.rmse, 1e-6) << "view " << k;
@@ -307,9 +332,9 @@ void solveCornellInto(const std::string& out) {
 // `penumbra view` of that solve under a virtual display. The window's GL driver is not ours to
 // leak-check, hence detect_leaks=0 under the sanitizers.
 int viewUnderXvfb(const std::string& out, const std::string& options) {
-    const std::string command = cat("ASAN_OPTIONS=detect_leaks=0 xvfb-run -a -s '-screen 0 640x480x24' ", PENUMBRA_EXE,
-                                    " view ", PENUMBRA_SOURCE_DIR, "/scenes/cornell-box.json --solution ", out,
-                                    "/solve ", options, " --quiet 2>&1");
+    const std::string command =
+        cat("ASAN_OPTIONS=detect_leaks=0 xvfb-run -a -s '-screen 0 640x480x24' ", PENUMBRA_EXE, " view ",
+            PENUMBRA_SOURCE_DIR, "/scenes/cornell-box.json --solution ", out, "/solve ", options, " --quiet 2>&1");
     return std::system(command.c_str());
 }
 }  // namespace
@@ -336,8 +361,8 @@ TEST(Viewer, ScreenshotUnderXvfbMatchesTheHeadlessRadiosityView) {
 
 TEST(Viewer, WithoutADisplayItSaysSoAndPointsToTheHeadlessForms) {
     const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
-    const std::string command = cat("env -u DISPLAY -u WAYLAND_DISPLAY ", PENUMBRA_EXE, " view ", scene,
-                                    " --patches 50 --quiet 2>&1");
+    const std::string command =
+        cat("env -u DISPLAY -u WAYLAND_DISPLAY ", PENUMBRA_EXE, " view ", scene, " --patches 50 --quiet 2>&1");
     FILE* pipe = popen(command.c_str(), "r");
     std::string output;
     char buffer[4096];
@@ -355,8 +380,8 @@ TEST(Viewer, InWindowFinalGatherMatchesTheRenderOfTheSameView) {
     const std::string out = test::tempDir() + "/viewer-gather";
     solveCornellInto(out);
     const std::string size = " --resolution 96x72";
-    const CommandResult render = run(cat("render ", scene, " --solution ", out, "/solve", size, " --spp 16 --out ", out,
-                                         "/render.exr --quiet"));
+    const CommandResult render =
+        run(cat("render ", scene, " --solution ", out, "/solve", size, " --spp 16 --out ", out, "/render.exr --quiet"));
     ASSERT_EQ(render.status, 0) << render.output;
     ASSERT_EQ(viewUnderXvfb(out, cat(size, " --screenshot ", out, "/shot.png --gather-passes 16")), 0);
     const ImageError e = compareBlurred(readLinearImage(out + "/shot.png"), readLinearImage(out + "/render.png"));

@@ -3,7 +3,6 @@
 // a lamp (Howell's point-to-rectangle factor) at every floor vertex. The PLY holds the same vertices
 // with the sRGB encoding of the same colours.
 #include <gtest/gtest.h>
-
 #include <tiny_gltf.h>
 
 #include <cstring>
@@ -20,7 +19,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
-int runCli(const std::string& args) { return std::system((std::string(PENUMBRA_EXE) + " " + args + " --quiet").c_str()); }
+int runCli(const std::string& args) {
+    return std::system((std::string(PENUMBRA_EXE) + " " + args + " --quiet").c_str());
+}
 
 std::vector<float> vec3Attribute(const tinygltf::Model& model, const tinygltf::Primitive& p, const std::string& name) {
     const auto it = p.attributes.find(name);
@@ -51,7 +52,8 @@ TEST(Export, GltfReloadsWithOneColourPerVertexAgreeingWithTheSolution) {
     ASSERT_TRUE(loader.LoadBinaryFromFile(&model, &error, &warning, dir + "/scene.glb")) << error;
     ASSERT_EQ(model.meshes.size(), 1u);
     const tinygltf::Primitive& p = model.meshes[0].primitives.at(0);
-    const std::vector<float> position = vec3Attribute(model, p, "POSITION"), colour = vec3Attribute(model, p, "COLOR_0"),
+    const std::vector<float> position = vec3Attribute(model, p, "POSITION"),
+                             colour = vec3Attribute(model, p, "COLOR_0"),
                              radiance = vec3Attribute(model, p, "_RADIANCE");
     ASSERT_FALSE(position.empty());
     ASSERT_EQ(colour.size(), position.size()) << "one colour per vertex";
@@ -115,13 +117,14 @@ TEST(Export, RadianceIsTheClosedFormUnderALamp) {
     std::string error, warning;
     ASSERT_TRUE(loader.LoadBinaryFromFile(&model, &error, &warning, dir + "/floor.glb")) << error;
     const tinygltf::Primitive& p = model.meshes.at(0).primitives.at(0);
-    const std::vector<float> position = vec3Attribute(model, p, "POSITION"), radiance = vec3Attribute(model, p, "_RADIANCE");
+    const std::vector<float> position = vec3Attribute(model, p, "POSITION"),
+                             radiance = vec3Attribute(model, p, "_RADIANCE");
     ASSERT_EQ(radiance.size(), position.size());
     size_t checked = 0;
     double worst = 0;
     for (size_t v = 0; v < position.size() / 3; ++v) {
         const Vec3 x(position[3 * v], position[3 * v + 1], position[3 * v + 2]);
-        if (std::abs(x.z()) > 1e-9) continue;   // the lamp's own vertices
+        if (std::abs(x.z()) > 1e-9) continue;  // the lamp's own vertices
         const double expected = test::unshadowedFloor(x) * kInvPi;
         worst = std::max(worst, std::abs(radiance[3 * v] / expected - 1));
         ++checked;

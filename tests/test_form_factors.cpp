@@ -19,7 +19,8 @@ double perpendicularRectangles(double l, double w, double h) {
     const double B = W * W * (1 + W * W + H * H) / ((1 + W * W) * (W * W + H * H));
     const double C = H * H * (1 + H * H + W * W) / ((1 + H * H) * (H * H + W * W));
     return 1 / (kPi * W) *
-           (W * std::atan(1 / W) + H * std::atan(1 / H) - std::sqrt(H * H + W * W) * std::atan(1 / std::sqrt(H * H + W * W)) +
+           (W * std::atan(1 / W) + H * std::atan(1 / H) -
+            std::sqrt(H * H + W * W) * std::atan(1 / std::sqrt(H * H + W * W)) +
             0.25 * std::log(A * std::pow(B, W * W) * std::pow(C, H * H)));
 }
 
@@ -52,7 +53,8 @@ TEST(FormFactorKernel, DifferentialAreaToCoaxialDisk) {
     for (double h : {0.1, 1.0, 10.0}) {
         const double R = 1;
         std::vector<Vec3> poly;
-        for (int k = 0; k < 512; ++k) poly.emplace_back(R * std::cos(2 * kPi * k / 512), R * std::sin(2 * kPi * k / 512), h);
+        for (int k = 0; k < 512; ++k)
+            poly.emplace_back(R * std::cos(2 * kPi * k / 512), R * std::sin(2 * kPi * k / 512), h);
         // The kernel takes up to 4 vertices at a time: sum the fan of triangles.
         double F = 0;
         for (int k = 0; k < 512; ++k) {
@@ -76,7 +78,8 @@ TEST(FormFactorMatrix, SmallPatchToCoaxialDisk) {
     // A 1 mm square patch under a disk (a 256-gon mesh of radius 1 at height 1), through the
     // whole pipeline: F(patch -> disk) = R^2 / (R^2 + h^2) = 0.5.
     std::string obj = "v 0 0 1\n";
-    for (int k = 0; k < 256; ++k) obj += cat("v ", std::cos(2 * kPi * k / 256), " ", std::sin(2 * kPi * k / 256), " 1\n");
+    for (int k = 0; k < 256; ++k)
+        obj += cat("v ", std::cos(2 * kPi * k / 256), " ", std::sin(2 * kPi * k / 256), " 1\n");
     for (int k = 0; k < 256; ++k) obj += cat("f 1 ", 2 + (k + 1) % 256, " ", 2 + k, "\n");
     test::writeText("disk.obj", obj);
     const std::string json = R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
@@ -87,7 +90,7 @@ TEST(FormFactorMatrix, SmallPatchToCoaxialDisk) {
     o.meshing.patchSize = 0.2;
     const SolveResult r = solveScene(test::sceneFromJson(json, "disk.json"), o);
     const double polygonArea = 256 * 0.5 * std::sin(2 * kPi / 256);
-    const double Rp = std::sqrt(polygonArea / kPi);   // the disk of the polygon's area
+    const double Rp = std::sqrt(polygonArea / kPi);  // the disk of the polygon's area
     EXPECT_NEAR(test::objectFormFactor(r, 0, 1), Rp * Rp / (Rp * Rp + 1), 0.005 * 0.5);
 }
 
@@ -118,13 +121,14 @@ TEST(FormFactorMatrix, ReciprocityFromIndependentIntegrations) {
     // quadratures of the same double integral; they must agree within the estimator's tolerance.
     SolveOptions o;
     o.meshing.targetPatches = 150;
-    const Scene scene = test::sceneFromJson(test::closedCube(R"({"type": "diffuse", "reflectance": 0.5})"), "cube.json");
+    const Scene scene =
+        test::sceneFromJson(test::closedCube(R"({"type": "diffuse", "reflectance": 0.5})"), "cube.json");
     const PatchSet p = meshScene(scene, o.meshing);
     const CubatureSettings settings;
     double worst = 0;
     for (size_t i = 0; i < p.size(); i += 7)
         for (size_t j = 0; j < p.size(); j += 5) {
-            if (i == j || std::abs(p.normal[i].dot(p.normal[j])) > 0.5) continue;   // skip coplanar / opposite faces
+            if (i == j || std::abs(p.normal[i].dot(p.normal[j])) > 0.5) continue;  // skip coplanar / opposite faces
             const double gij = unoccludedAreaFactor(p, i, j, settings), gji = unoccludedAreaFactor(p, j, i, settings);
             worst = std::max(worst, std::abs(gij - gji) / std::max(gij, gji));
         }
@@ -134,7 +138,9 @@ TEST(FormFactorMatrix, ReciprocityFromIndependentIntegrations) {
 TEST(FormFactorMatrix, ClosedBoxRowsSumToOne) {
     SolveOptions o;
     o.meshing.targetPatches = 600;
-    const SolveResult r = solveScene(test::sceneFromJson(test::closedCube(R"({"type": "diffuse", "reflectance": 0.5, "emission": 1})"), "cube.json"), o);
+    const SolveResult r = solveScene(
+        test::sceneFromJson(test::closedCube(R"({"type": "diffuse", "reflectance": 0.5, "emission": 1})"), "cube.json"),
+        o);
     EXPECT_NEAR(r.rowSumMin, 1.0, 1e-5);
     EXPECT_NEAR(r.rowSumMax, 1.0, 1e-5);
     // In a closed box nothing escapes.

@@ -34,7 +34,8 @@ TEST(HierarchySlow, ReachesTheMatrixSolvesRadiosityPerObject) {
     for (const auto& [o, m] : a)
         for (int c = 0; c < 3; ++c) EXPECT_NEAR(b.at(o)[c], m[c], 0.05 * m[c]) << "object " << o << " channel " << c;
     for (int c = 0; c < 3; ++c) {
-        EXPECT_NEAR(hierarchy.power.totalAbsorbed[c], matrix.power.totalAbsorbed[c], 0.01 * matrix.power.totalAbsorbed[c]);
+        EXPECT_NEAR(hierarchy.power.totalAbsorbed[c], matrix.power.totalAbsorbed[c],
+                    0.01 * matrix.power.totalAbsorbed[c]);
     }
     test::expectBalanceByRays(box, hierarchy, 2e-3, 256, "hierarchical");
 }
@@ -52,8 +53,8 @@ TEST(HierarchySlow, LinksGrowAboutLinearlyWithTheElements) {
     ASSERT_GT(nf, 3 * nc);
     const double perLeafCoarse = double(coarse.hierarchy.links) / nc, perLeafFine = double(fine.hierarchy.links) / nf;
     // Linear: the links per leaf barely change while the leaves grow; the matrix's grow as n.
-    EXPECT_LT(perLeafFine, 1.5 * perLeafCoarse) << perLeafCoarse << " links per leaf at " << nc << " leaves, " << perLeafFine
-                                                << " at " << nf;
+    EXPECT_LT(perLeafFine, 1.5 * perLeafCoarse)
+        << perLeafCoarse << " links per leaf at " << nc << " leaves, " << perLeafFine << " at " << nf;
     EXPECT_LT(double(fine.hierarchy.links), 0.1 * nf * nf);
     EXPECT_LT(fine.hierarchy.bytes, 0.5 * double(formFactorMatrixBytes(size_t(nf))));
 }
@@ -63,7 +64,7 @@ using test::pointToRectangle;
 TEST(Hierarchy, RefinesAlongThePenumbraAndMeetsTheClosedFormAwayFromIt) {
     SolveOptions o;
     o.solver = "hierarchical";
-    o.meshing.targetPatches = 200000;   // the finest elements allowed: far below what the light needs
+    o.meshing.targetPatches = 200000;  // the finest elements allowed: far below what the light needs
     o.hierarchyRoots = 16;
     const SolveResult r = solveScene(test::sceneFromJson(test::lampOverFloor(true)), o);
     // Roots of 0.5 m: the floor's outer twelve (off the axis by more than 0.5 m) lie wholly
@@ -119,13 +120,13 @@ TEST(Hierarchy, RefusesMirrorsAndGlassByName) {
 }
 
 TEST(Hierarchy, AutoPicksTheMatrixWhenItFitsAndTheHierarchyWhenNot) {
-    SolveOptions o;   // solver "auto" by default
+    SolveOptions o;  // solver "auto" by default
     o.meshing.targetPatches = 300;
     const Scene box = test::sceneFromJson(sceneFile("cornell-box.json"));
     const SolveResult small = solveScene(box, o);
     EXPECT_EQ(small.solverName, "gauss-seidel");
     EXPECT_NE(small.solverReason.find("MiB"), std::string::npos) << small.solverReason;
-    o.maxMemoryBytes = 100e3;   // 300 patches need 360 kB of matrix: more than half of this
+    o.maxMemoryBytes = 100e3;  // 300 patches need 360 kB of matrix: more than half of this
     const SolveResult tight = solveScene(box, o);
     EXPECT_EQ(tight.solverName, "hierarchical");
     EXPECT_NE(tight.solverReason.find("hierarchy"), std::string::npos) << tight.solverReason;

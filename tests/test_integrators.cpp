@@ -9,11 +9,11 @@
 #include "core/optics.h"
 #include "core/parallel.h"
 #include "fixtures.h"
-#include "statistics.h"
 #include "render/final_gather.h"
 #include "render/image_metrics.h"
 #include "render/path_tracer.h"
 #include "render/photon_map.h"
+#include "statistics.h"
 
 using namespace penumbra;
 
@@ -173,7 +173,8 @@ TEST(Determinism, RendersDoNotDependOnTheThreadCountAndSeedsChangeOnlyNoise) {
         const size_t n = a.rgb.size() / 3;
         double sum = 0, sum2 = 0;
         for (size_t k = 0; k < n; ++k) {
-            const double d = double(a.rgb[3 * k] + a.rgb[3 * k + 1] + a.rgb[3 * k + 2]) - (b.rgb[3 * k] + b.rgb[3 * k + 1] + b.rgb[3 * k + 2]);
+            const double d = double(a.rgb[3 * k] + a.rgb[3 * k + 1] + a.rgb[3 * k + 2]) -
+                             (b.rgb[3 * k] + b.rgb[3 * k + 1] + b.rgb[3 * k + 2]);
             sum += d;
             sum2 += d * d;
         }

@@ -15,10 +15,12 @@ namespace {
 std::string twoSquares(double unitScale, const std::string& receiverMaterial, const std::string& receiverShape) {
     return cat(R"({"unit_scale": )", unitScale, R"(, "materials": {
         "lamp": {"type": "diffuse", "reflectance": 0, "emission": 1},
-        "recv": )", receiverMaterial, R"(},
+        "recv": )",
+               receiverMaterial, R"(},
       "objects": [
         {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]},
-        )", receiverShape, "]}");
+        )",
+               receiverShape, "]}");
 }
 
 const char* kReceiverSquare =
@@ -53,13 +55,14 @@ void expectDarkRoomBlack(std::initializer_list<double> sizes) {
             // Every patch of the dark room, and of the shared wall's dark side, whatever it touches.
             if (name.rfind("dark_", 0) == 0 || name == "wall_dark_side") {
                 ++dark;
-                for (int c = 0; c < 3; ++c) ASSERT_EQ(r.solution.B[i][c], 0.0) << name << " patch " << i << " at size " << size;
+                for (int c = 0; c < 3; ++c)
+                    ASSERT_EQ(r.solution.B[i][c], 0.0) << name << " patch " << i << " at size " << size;
             } else if (name.rfind("lit_", 0) == 0) {
                 lit += r.solution.B[i][0] > 0;
             }
         }
         EXPECT_GT(dark, 5u);
-        EXPECT_GT(lit, 5u);   // and the lit room is lit
+        EXPECT_GT(lit, 5u);  // and the lit room is lit
     }
 }
 }  // namespace
@@ -72,8 +75,8 @@ TEST(Extremes, ReflectanceZeroAndOneInAnOpenScene) {
     // Black lamp below a receiver 1 apart: the receiver's mean irradiance is pi * L_e * F(recv->lamp)
     // = pi * 0.19982; it reflects rho of it, which nothing returns (the lamp is black).
     for (double rho : {0.0, 1.0}) {
-        const Scene scene =
-            test::sceneFromJson(twoSquares(1, cat(R"({"type": "diffuse", "reflectance": )", rho, "}"), kReceiverSquare));
+        const Scene scene = test::sceneFromJson(
+            twoSquares(1, cat(R"({"type": "diffuse", "reflectance": )", rho, "}"), kReceiverSquare));
         const SolveResult r = solve(scene, 200);
         const double expected = rho * kPi * 0.19982;
         EXPECT_NEAR(objectMean(r, 1)[0], expected, 0.005 * kPi * 0.19982) << "rho " << rho;
@@ -84,7 +87,8 @@ TEST(Extremes, ReflectanceZeroAndOneInAnOpenScene) {
 TEST(Extremes, PatchesFromMicrometresToKilometres) {
     // Form factors do not depend on scale; power scales with area.
     for (double scale : {1e-6, 1e-3, 1.0, 1e4}) {
-        const Scene scene = test::sceneFromJson(twoSquares(scale, R"({"type": "diffuse", "reflectance": 0.5})", kReceiverSquare));
+        const Scene scene =
+            test::sceneFromJson(twoSquares(scale, R"({"type": "diffuse", "reflectance": 0.5})", kReceiverSquare));
         const SolveResult r = solve(scene, 100);
         EXPECT_NEAR(test::objectFormFactor(r, 1, 0), 0.19982, 0.005 * 0.19982) << "scale " << scale;
         const double emitted = kPi * scale * scale;
@@ -136,8 +140,10 @@ TEST(Extremes, EmissionAcrossTwelveOrdersOfMagnitude) {
     // Linearity: with a 1e-6 lamp and a 1e6 lamp, each contribution survives in the sum.
     auto scene = [](double dim, double bright) {
         return test::sceneFromJson(cat(R"({"materials": {
-            "dim": {"type": "diffuse", "reflectance": 0, "emission": )", dim, R"(},
-            "bright": {"type": "diffuse", "reflectance": 0, "emission": )", bright, R"(},
+            "dim": {"type": "diffuse", "reflectance": 0, "emission": )",
+                                       dim, R"(},
+            "bright": {"type": "diffuse", "reflectance": 0, "emission": )",
+                                       bright, R"(},
             "grey": {"type": "diffuse", "reflectance": 0.5}},
           "objects": [
             {"name": "dim", "type": "quad", "material": "dim", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]},

@@ -28,8 +28,9 @@ std::string cubeOff() {
     return s;
 }
 std::string cubePly() {
-    std::string s = "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\nproperty float z\n"
-                    "element face 6\nproperty list uchar int vertex_indices\nend_header\n";
+    std::string s =
+        "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\nproperty float z\n"
+        "element face 6\nproperty list uchar int vertex_indices\nend_header\n";
     for (const auto& v : kCorner) s += cat(v[0], " ", v[1], " ", v[2], "\n");
     for (const auto& f : kFaces) s += cat("4 ", f[0], " ", f[1], " ", f[2], " ", f[3], "\n");
     return s;
@@ -49,7 +50,8 @@ std::string cubeStl() {
 }  // namespace
 
 TEST(SceneLoading, TransformAppliesScaleThenRotationsThenTranslation) {
-    const Scene scene = test::sceneFromJson(R"({"unit_scale": 0.5, "materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
+    const Scene scene =
+        test::sceneFromJson(R"({"unit_scale": 0.5, "materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
       "objects": [{"name": "t", "type": "triangle", "material": "m", "vertices": [[1,0,0],[0,1,0],[0,0,1]],
                    "transform": {"scale": [2, 3, 4], "rotate_deg": [90, 0, 90], "translate": [10, 20, 30]}}]})");
     // (1,0,0) -scale-> (2,0,0) -rotx 90-> (2,0,0) -rotz 90-> (0,2,0) -translate-> (10,22,30), then x 0.5.
@@ -67,7 +69,8 @@ TEST(SceneLoading, NearlyPlanarQuadWithinOnePercentIsAccepted) {
 }
 
 TEST(SceneLoading, CommentsAndUnderscoreKeysAreIgnored) {
-    EXPECT_NO_THROW(test::sceneFromJson(R"({"comment": "x", "_note": 1, "materials": {"_m": 3, "m": {"type": "diffuse", "reflectance": 0.5, "comment": "grey"}},
+    EXPECT_NO_THROW(test::sceneFromJson(
+        R"({"comment": "x", "_note": 1, "materials": {"_m": 3, "m": {"type": "diffuse", "reflectance": 0.5, "comment": "grey"}},
       "objects": [{"name": "q", "_tag": [], "type": "quad", "material": "m", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}]})"));
 }
 
@@ -77,8 +80,11 @@ TEST_P(MeshFormats, ClosedCubeMeshIsAWhiteFurnace) {
     const std::string ext = GetParam();
     const std::string text = ext == "obj" ? cubeObj() : ext == "off" ? cubeOff() : ext == "ply" ? cubePly() : cubeStl();
     test::writeText("cube." + ext, text);
-    const Scene scene = test::sceneFromJson(cat(R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.9, "emission": 1}},
-      "objects": [{"name": "cube", "type": "mesh", "material": "m", "file": "cube.)", ext, R"("}]})"), "mesh-" + ext + ".json");
+    const Scene scene =
+        test::sceneFromJson(cat(R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.9, "emission": 1}},
+      "objects": [{"name": "cube", "type": "mesh", "material": "m", "file": "cube.)",
+                                ext, R"("}]})"),
+                            "mesh-" + ext + ".json");
     SolveOptions o;
     o.meshing.targetPatches = 100;
     const SolveResult r = solveScene(scene, o);

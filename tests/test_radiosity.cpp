@@ -23,7 +23,7 @@ class Furnace : public ::testing::TestWithParam<std::tuple<double, std::string>>
 
 TEST_P(Furnace, EveryPatchReachesEOverOneMinusRho) {
     const auto [rho, solver] = GetParam();
-    const double Le = 1.0;   // radiance: exitance E = pi
+    const double Le = 1.0;  // radiance: exitance E = pi
     const std::string material = cat(R"({"type": "diffuse", "reflectance": )", rho, R"(, "emission": )", Le, "}");
     const SolveResult r = solve(test::closedCube(material), 150, solver, 1e-7);
     const double expected = kPi * Le / (1 - rho);
@@ -72,7 +72,7 @@ TEST(Energy, OpenScenePowerBalances) {
     for (int c = 0; c < 3; ++c) {
         const double e = r.power.totalEmitted[c];
         EXPECT_NEAR(e, kPi * (c == 0 ? 3 : c == 1 ? 2 : 1), 1e-9 * e);
-        EXPECT_GT(r.power.escaped[c], 0.3 * e);   // an open scene loses most of its light
+        EXPECT_GT(r.power.escaped[c], 0.3 * e);  // an open scene loses most of its light
     }
     test::expectBalanceByRays(json, r);
 }
@@ -99,8 +99,8 @@ TEST_P(EnergyEveryStep, NoSolverEverGainsPower) {
     // From below, without over-relaxation, B only grows towards the solution: at no step may the
     // absorbed power exceed the emitted power, nor any radiosity fall.
     std::vector<std::vector<Rgb>> steps;
-    const SolveResult r = solve(cornellBox(), 150, GetParam(), 1e-6,
-                                [&](int, const std::vector<Rgb>& B) { steps.push_back(B); });
+    const SolveResult r =
+        solve(cornellBox(), 150, GetParam(), 1e-6, [&](int, const std::vector<Rgb>& B) { steps.push_back(B); });
     ASSERT_GT(steps.size(), 3u);
     std::vector<Rgb> previous(r.patches.size(), Rgb::Zero());
     for (const auto& B : steps) {

@@ -15,6 +15,7 @@
 
 #include "core/optics.h"
 #include "fixtures.h"
+#include "io/image_io.h"
 #include "render/camera.h"
 #include "render/final_gather.h"
 #include "render/image_metrics.h"
@@ -22,7 +23,6 @@
 #include "render/photon_map.h"
 #include "render/radiosity_view.h"
 #include "render/regions.h"
-#include "io/image_io.h"
 
 using namespace penumbra;
 
@@ -33,7 +33,7 @@ struct Pair {
     Camera camera;
     SolveResult solved;
     Image gather, radiosity, path;
-    std::unique_ptr<SceneTracer> tracer;   // over the solved patches, for pixel labels
+    std::unique_ptr<SceneTracer> tracer;  // over the solved patches, for pixel labels
 };
 
 // Solves the scene with the defaults, renders it three ways at `size` x `size`: the final gather
@@ -48,7 +48,8 @@ std::unique_ptr<Pair> renderAll(const std::string& file, int size, int gatherSpp
     p->solved = solveScene(p->scene, options);
     const SolvedScene solved(p->scene, p->solved.patches, p->solved.corners, {}, {}, 1);
     p->gather = solved.render(p->camera, gatherSpp, 1);
-    p->radiosity = renderRadiosityView(p->scene, p->camera, p->solved.patches, *p->solved.rays, p->solved.corners, {4, 1});
+    p->radiosity =
+        renderRadiosityView(p->scene, p->camera, p->solved.patches, *p->solved.rays, p->solved.corners, {4, 1});
     p->tracer = std::make_unique<SceneTracer>(p->scene, p->solved.patches);
     p->path = renderPath(*p->tracer, p->camera, pathSpp, 7);
     return p;
@@ -62,7 +63,8 @@ void keepImagesIfFailed(const std::string& name, const Image& image, const Image
     for (size_t k = 0; k < diff.rgb.size(); ++k) diff.rgb[k] = std::abs(image.rgb[k] - reference.rgb[k]);
     const std::string dir = std::string(PENUMBRA_TEST_OUTPUT_DIR) + "/failed-images";
     std::filesystem::create_directories(dir);
-    for (const auto& [suffix, im] : {std::pair<const char*, const Image*>{"rendered", &image}, {"reference", &reference}, {"difference", &diff}}) {
+    for (const auto& [suffix, im] :
+         {std::pair<const char*, const Image*>{"rendered", &image}, {"reference", &reference}, {"difference", &diff}}) {
         const std::string path = cat(dir, "/", name, "-", suffix, ".exr");
         writeLinearImage(*im, path);
         writePreviewPng(*im, previewPathFor(path));
@@ -75,14 +77,14 @@ void keepImagesIfFailed(const std::string& name, const Image& image, const Image
 void expectRegions(const std::string& name, const Image& image, const Image& reference, const ImageRegions& regions,
                    double imageL1, const std::vector<std::string>& skip = {}, double regionTolerance = 0.03) {
     const ImageError e = compareBlurred(image, reference);
-    std::printf("%s: pooled L1 after 5x5 blur %.4f (per-pixel relative error %.4f), brightness ratio %.4f\n", name.c_str(),
-                e.pooledL1, e.meanRelative, e.meanRatio);
+    std::printf("%s: pooled L1 after 5x5 blur %.4f (per-pixel relative error %.4f), brightness ratio %.4f\n",
+                name.c_str(), e.pooledL1, e.meanRelative, e.meanRatio);
     EXPECT_LT(e.pooledL1, imageL1) << name << ": whole image";
     int tested = 0;
     for (const RegionError& r : compareRegions(image, reference, regions)) {
         const bool skipped = std::find(skip.begin(), skip.end(), r.name) != skip.end() || r.pixels < 40;
-        std::printf("  %-16s %5d pixels: mean ratio %.4f, pooled L1 %.4f%s\n", r.name.c_str(), r.pixels, r.ratio, r.pooledL1,
-                    skipped ? " (not tested)" : "");
+        std::printf("  %-16s %5d pixels: mean ratio %.4f, pooled L1 %.4f%s\n", r.name.c_str(), r.pixels, r.ratio,
+                    r.pooledL1, skipped ? " (not tested)" : "");
         if (skipped) continue;
         EXPECT_NEAR(r.ratio, 1.0, regionTolerance) << name << ": region " << r.name << " (" << r.pixels << " pixels)";
         ++tested;
@@ -104,7 +106,8 @@ std::vector<SurfaceHit> pixelHits(const Pair& p) {
     const PinholeCamera cam(p.camera);
     std::vector<SurfaceHit> hits;
     for (int y = 0; y < p.camera.height; ++y)
-        for (int x = 0; x < p.camera.width; ++x) hits.push_back(p.tracer->trace(cam.origin(), cam.direction(x + 0.5, y + 0.5)));
+        for (int x = 0; x < p.camera.width; ++x)
+            hits.push_back(p.tracer->trace(cam.origin(), cam.direction(x + 0.5, y + 0.5)));
     return hits;
 }
 
@@ -117,7 +120,8 @@ double maskedRelativeError(const Image& a, const Image& ref, const std::vector<c
     size_t count = 0;
     for (size_t k = 0; k < keep.size(); ++k) {
         if (!keep[k]) continue;
-        for (size_t c = 0; c < 3; ++c) rel += std::abs(a.rgb[3 * k + c] - ref.rgb[3 * k + c]) / (ref.rgb[3 * k + c] + floor);
+        for (size_t c = 0; c < 3; ++c)
+            rel += std::abs(a.rgb[3 * k + c] - ref.rgb[3 * k + c]) / (ref.rgb[3 * k + c] + floor);
         count += 3;
     }
     return count ? rel / double(count) : 0;
@@ -179,7 +183,8 @@ TEST(ReferenceSlow, CornellBoxFinalGatherMatchesThePathTracer) {
         const std::string& name = p->scene.objects[size_t(hits[k].object)].name;
         double d = 1e9;
         for (const auto& [a, b] : bases) d = std::min(d, segmentDistance(hits[k].point, a, b));
-        contact[k] = (name == "floor" || name.find("block") != std::string::npos) && d < 0.03 && hits[k].point.y() < 0.03;
+        contact[k] =
+            (name == "floor" || name.find("block") != std::string::npos) && d < 0.03 && hits[k].point.y() < 0.03;
         count += contact[k];
     }
     ASSERT_GT(count, 50);
@@ -200,7 +205,8 @@ TEST(ReferenceSlow, CornellGlassCausticAndMirrorBall) {
     ImageRegions regions = objectRegions(*p->tracer, p->camera);
     regions.add("caustic", causticMask(*p->tracer, PhotonMap(*p->tracer, {}), regions));
     ASSERT_TRUE(regions.find("ceiling") && regions.find("mirror_ball") && regions.find("glass_ball"));
-    ASSERT_GE(std::count(regions.find("caustic")->begin(), regions.find("caustic")->end(), 1), 40) << "a caustic in view";
+    ASSERT_GE(std::count(regions.find("caustic")->begin(), regions.find("caustic")->end(), 1), 40)
+        << "a caustic in view";
     expectRegions("cornell-glass-final-gather", p->gather, p->path, regions, 0.015);
     // The radiosity view holds only diffuse light: the balls are black in it (issue 18), so the whole
     // image is off by their share and is not held to a bound here. Its floor measured 3.4% bright at
@@ -234,8 +240,8 @@ TEST(ReferenceSlow, CornellGlassCausticAndMirrorBall) {
             r += p->path.at(int(k) % p->camera.width, int(k) / p->camera.width);
         }
     EXPECT_NEAR(g.sum() / r.sum(), 1.0, 0.05) << "mirror ball";
-    EXPECT_GT(g.sum(), 0.2 * meanOver(p->gather, 0, 0, p->camera.width, p->camera.height).sum() * double(
-                                   std::count(ring.begin(), ring.end(), 1)))
+    EXPECT_GT(g.sum(), 0.2 * meanOver(p->gather, 0, 0, p->camera.width, p->camera.height).sum() *
+                           double(std::count(ring.begin(), ring.end(), 1)))
         << "the mirror ball reflects the room";
 
     // The caustic on the floor under the glass ball. Photon map (light side) against a backward
@@ -283,7 +289,8 @@ TEST(ReferenceSlow, CornellGlassCausticAndMirrorBall) {
             const int rays = 2000;
             for (int k = 0; k < rays; ++k) {
                 const Vec3 d = cosineDirection(up, rng);
-                const SpecularWalk w = walkSpecular(*p->tracer, p->tracer->trace(x + p->tracer->epsilon() * up, d), d, rng, 32);
+                const SpecularWalk w =
+                    walkSpecular(*p->tracer, p->tracer->trace(x + p->tracer->epsilon() * up, d), d, rng, 32);
                 if (w.end == WalkEnd::Diffuse && w.bounces > 0 && w.hit.frontFacing(w.dir))
                     eb += (w.throughput * w.hit.material->emission).sum();
             }
@@ -300,9 +307,10 @@ TEST(ReferenceSlow, CornellGlassCausticAndMirrorBall) {
                 peakBare = bareFloor(x);
             }
         }
-    std::printf("caustic power within 15 cm of the glass ball's foot: photon map %.5f W, backward %.5f W, the ball "
-                "intercepts %.5f W; peak %.3f W/m^2 (the bare floor there gets %.3f directly), %.3f around it\n",
-                photonPower, backwardPower, intercepted, peak, peakBare, ring2 / ringCount);
+    std::printf(
+        "caustic power within 15 cm of the glass ball's foot: photon map %.5f W, backward %.5f W, the ball "
+        "intercepts %.5f W; peak %.3f W/m^2 (the bare floor there gets %.3f directly), %.3f around it\n",
+        photonPower, backwardPower, intercepted, peak, peakBare, ring2 / ringCount);
     EXPECT_NEAR(photonPower / backwardPower, 1.0, 0.10);
     // Two glass-air interfaces of index 1.5 pass 80-90% of the intercepted light (Fresnel averaged
     // over the ball's disc); the mirror ball adds a little of its own caustic to the window.

@@ -14,7 +14,7 @@ TEST(Optics, FresnelAtNormalIncidenceIsTheSquaredIndexRatio) {
     for (double n : {1.33, 1.5, 2.42}) {
         const double expected = std::pow((n - 1) / (n + 1), 2);
         EXPECT_NEAR(fresnelDielectric(1, 1, n), expected, 1e-12) << n;
-        EXPECT_NEAR(fresnelDielectric(1, n, 1), expected, 1e-12) << n;   // the same from inside
+        EXPECT_NEAR(fresnelDielectric(1, n, 1), expected, 1e-12) << n;  // the same from inside
     }
 }
 
@@ -94,7 +94,8 @@ TEST(SpecularTransport, PerfectMirrorWallKeepsTheFurnaceUniform) {
     // A lossless mirror wall makes the cube look like a closed box twice as long, by the image
     // method: still a furnace, so every diffuse patch has B = E / (1 - rho).
     const double rho = 0.8;
-    const SolveResult r = solveWithRays(test::furnaceCube(rho, R"({"type": "mirror", "reflectance": 1})", true), 150, 16384);
+    const SolveResult r =
+        solveWithRays(test::furnaceCube(rho, R"({"type": "mirror", "reflectance": 1})", true), 150, 16384);
     ASSERT_FALSE(r.system.transport.empty());
     expectFurnace(r, rho, 0.01);
     expectFurnaceCorners(r, rho, 0.03);
@@ -104,8 +105,9 @@ TEST(SpecularTransport, PerfectMirrorWallKeepsTheFurnaceUniform) {
 TEST(SpecularTransport, LosslessGlassSphereKeepsTheFurnaceUniform) {
     const double rho = 0.5;
     const SolveResult r = solveWithRays(
-        test::furnaceCube(rho, R"({"type": "dielectric", "ior": 1.5})", false,
-                          R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [0.5, 0.5, 0.5], "radius": 0.25})"),
+        test::furnaceCube(
+            rho, R"({"type": "dielectric", "ior": 1.5})", false,
+            R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [0.5, 0.5, 0.5], "radius": 0.25})"),
         200, 16384);
     expectFurnace(r, rho, 0.01);
     expectFurnaceCorners(r, rho, 0.03);
@@ -121,7 +123,8 @@ TEST(SpecularTransport, MirrorReturnsTheLampsImage) {
     // and the mirror absorbs (1 - R) F(1, 1, 1) (Howell C-11 for both).
     const double R = 0.8;
     const std::string json = cat(R"({"materials": {"lamp": {"type": "diffuse", "reflectance": 0, "emission": 1},
-          "chrome": {"type": "mirror", "reflectance": )", R, R"(}},
+          "chrome": {"type": "mirror", "reflectance": )",
+                                 R, R"(}},
       "objects": [
         {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]},
         {"name": "mirror", "type": "quad", "material": "chrome", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]}]})");
@@ -159,5 +162,6 @@ TEST(SpecularTransport, AllSolversAgreeWithAMirrorAndGlass) {
     }
     for (size_t s = 1; s < results.size(); ++s)
         for (size_t i = 0; i < results[0].size(); ++i)
-            ASSERT_NEAR(results[s][i][0], results[0][i][0], 1e-6 * std::max(1.0, results[0][i][0])) << "solver " << s << ", patch " << i;
+            ASSERT_NEAR(results[s][i][0], results[0][i][0], 1e-6 * std::max(1.0, results[0][i][0]))
+                << "solver " << s << ", patch " << i;
 }

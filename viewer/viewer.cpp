@@ -7,10 +7,10 @@
 #include <backends/imgui_impl_opengl3.h>
 #include <imgui.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <atomic>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -193,7 +193,8 @@ public:
 
     void start(const Camera& camera) {
         stop();
-        if (!solved_) solved_ = std::make_unique<SolvedScene>(scene_, patches_, corners_, GatherSettings{}, PhotonSettings{}, 1);
+        if (!solved_)
+            solved_ = std::make_unique<SolvedScene>(scene_, patches_, corners_, GatherSettings{}, PhotonSettings{}, 1);
         camera_ = camera;
         cancel_ = false;
         passes_ = 0;
@@ -228,7 +229,7 @@ private:
     const Scene& scene_;
     const PatchSet& patches_;
     const CornerValues& corners_;
-    std::unique_ptr<SolvedScene> solved_;   // built on the first G
+    std::unique_ptr<SolvedScene> solved_;  // built on the first G
     Camera camera_;
     std::thread worker_;
     std::atomic<bool> cancel_{false};
@@ -242,9 +243,12 @@ bool sameView(const Camera& a, const Camera& b) {
 }
 
 std::string cameraJson(const Camera& c, double unitScale) {
-    auto p = [&](const Vec3& v) { return cat("[", v.x() / unitScale, ", ", v.y() / unitScale, ", ", v.z() / unitScale, "]"); };
-    return cat("{\"position\": ", p(c.position), ", \"look_at\": ", p(c.lookAt), ", \"up\": [", c.up.x(), ", ", c.up.y(),
-               ", ", c.up.z(), "], \"fov_y_deg\": ", c.fovYDeg, ", \"resolution\": [", c.width, ", ", c.height, "]}");
+    auto p = [&](const Vec3& v) {
+        return cat("[", v.x() / unitScale, ", ", v.y() / unitScale, ", ", v.z() / unitScale, "]");
+    };
+    return cat("{\"position\": ", p(c.position), ", \"look_at\": ", p(c.lookAt), ", \"up\": [", c.up.x(), ", ",
+               c.up.y(), ", ", c.up.z(), "], \"fov_y_deg\": ", c.fovYDeg, ", \"resolution\": [", c.width, ", ",
+               c.height, "]}");
 }
 
 }  // namespace
@@ -253,9 +257,10 @@ void requireDisplay() {
     const char* x11 = std::getenv("DISPLAY");
     const char* wayland = std::getenv("WAYLAND_DISPLAY");
     if ((!x11 || !*x11) && (!wayland || !*wayland))
-        throw Error("view: no display to open a window on (DISPLAY is not set). Headless: `penumbra render SCENE "
-                    "--solution DIR --integrator radiosity --out IMAGE.exr` (any --camera, or --orbit N), `penumbra "
-                    "export DIR --out FILE.glb`, or run the viewer under `xvfb-run -a`");
+        throw Error(
+            "view: no display to open a window on (DISPLAY is not set). Headless: `penumbra render SCENE "
+            "--solution DIR --integrator radiosity --out IMAGE.exr` (any --camera, or --orbit N), `penumbra "
+            "export DIR --out FILE.glb`, or run the viewer under `xvfb-run -a`");
 }
 
 void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& corners, const Camera& start,
@@ -307,7 +312,8 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
         glEnableVertexAttribArray(1);
         glGenBuffers(1, &indexBuffer);
         glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, indexBuffer);
-        glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(indices.size() * sizeof(unsigned)), indices.data(), GL_STATIC_DRAW);
+        glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(indices.size() * sizeof(unsigned)), indices.data(),
+                     GL_STATIC_DRAW);
         return array;
     };
     const GLuint vao = vertexArray(triangles), edgeVao = vertexArray(edges);
@@ -358,13 +364,15 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
     nav.camera = nav.start = start;
     const double sceneSize = patches.size() ? std::max(patchBounds(patches).diagonal().norm(), 1e-6) : 1.0;
     float stops = float(options.exposureStops);
-    int toneMap = 0;   // 0: clamp, as the previews; 1: Reinhard
+    int toneMap = 0;  // 0: clamp, as the previews; 1: Reinhard
     const double autoScale = exportExposure(mesh, 0);
     double lastTime = glfwGetTime();
     Keys keys;
     if (!screenshot)
-        logInfo("view: left drag orbits, right drag pans, wheel zooms, F toggles fly mode (WASD + mouse), E edges, "
-                "R resets, P prints the camera, +/- exposure, T tone mapping, G renders the final gather of the view, Esc quits");
+        logInfo(
+            "view: left drag orbits, right drag pans, wheel zooms, F toggles fly mode (WASD + mouse), E edges, "
+            "R resets, P prints the camera, +/- exposure, T tone mapping, G renders the final gather of the view, Esc "
+            "quits");
 
     for (int frame = 0; !glfwWindowShouldClose(window); ++frame) {
         glfwPollEvents();
@@ -388,7 +396,8 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
                 if (keys.pressed(window, GLFW_KEY_F)) nav.fly = !nav.fly;
                 if (keys.pressed(window, GLFW_KEY_E)) nav.edges = !nav.edges;
                 if (keys.pressed(window, GLFW_KEY_R)) nav.camera = nav.start;
-                if (keys.pressed(window, GLFW_KEY_P)) std::printf("%s\n", cameraJson(nav.camera, scene.unitScale).c_str());
+                if (keys.pressed(window, GLFW_KEY_P))
+                    std::printf("%s\n", cameraJson(nav.camera, scene.unitScale).c_str());
                 if (keys.pressed(window, GLFW_KEY_EQUAL) || keys.pressed(window, GLFW_KEY_KP_ADD)) stops += 0.5f;
                 if (keys.pressed(window, GLFW_KEY_MINUS) || keys.pressed(window, GLFW_KEY_KP_SUBTRACT)) stops -= 0.5f;
                 if (keys.pressed(window, GLFW_KEY_ESCAPE)) glfwSetWindowShouldClose(window, GLFW_TRUE);

@@ -37,14 +37,15 @@ double pointPolygonFormFactor(const Vec3& x, const Vec3& n, const Vec3* poly, in
         const Vec3 rb = k + 1 < m ? Vec3(p[k + 1] - x) : first;
         const Vec3 c = ra.cross(rb);
         const double s = c.norm();
-        if (s > 0) sum += n.dot(c) / s * std::atan2(s, ra.dot(rb));   // |n . c| <= s: bounded
+        if (s > 0) sum += n.dot(c) / s * std::atan2(s, ra.dot(rb));  // |n . c| <= s: bounded
         ra = rb;
     }
     return std::abs(sum) / (2 * kPi);
 }
 
 double pointPolygonDistance(const Vec3& x, const Vec3* poly, int count) {
-    const Vec3 normal = (poly[1] - poly[0]).cross(poly[2] - poly[0]) + (count == 4 ? (poly[2] - poly[0]).cross(poly[3] - poly[0]) : Vec3::Zero());
+    const Vec3 normal = (poly[1] - poly[0]).cross(poly[2] - poly[0]) +
+                        (count == 4 ? (poly[2] - poly[0]).cross(poly[3] - poly[0]) : Vec3::Zero());
     const Vec3 nn = normal.normalized();
     const double height = nn.dot(x - poly[0]);
     const Vec3 projected = x - height * nn;
@@ -65,8 +66,8 @@ double pointPolygonDistance(const Vec3& x, const Vec3* poly, int count) {
 namespace {
 
 // Gauss-Legendre nodes and weights on [0, 1] for 1, 2 and 3 points.
-constexpr double kG2 = 0.2886751345948129;    // 0.5 / sqrt(3)
-constexpr double kG3 = 0.3872983346207417;    // 0.5 * sqrt(3/5)
+constexpr double kG2 = 0.2886751345948129;  // 0.5 / sqrt(3)
+constexpr double kG3 = 0.3872983346207417;  // 0.5 * sqrt(3/5)
 const double kNodes[3][3] = {{0.5, 0, 0}, {0.5 - kG2, 0.5 + kG2, 0}, {0.5 - kG3, 0.5, 0.5 + kG3}};
 const double kWeights[3][3] = {{1, 0, 0}, {0.5, 0.5, 0}, {5.0 / 18, 8.0 / 18, 5.0 / 18}};
 
@@ -97,7 +98,8 @@ struct Cubature {
         // cutDepth (the cut runs across the whole patch, so deeper splits cost 2^depth cells).
         if (order > 0 && depth < cutDepth && std::abs(height(centre)) < diameter) {
             const double h0 = height(patches.pointAt(s, u0, v0)), h1 = height(patches.pointAt(s, u0 + size, v0)),
-                         h2 = height(patches.pointAt(s, u0 + size, v0 + size)), h3 = height(patches.pointAt(s, u0, v0 + size));
+                         h2 = height(patches.pointAt(s, u0 + size, v0 + size)),
+                         h3 = height(patches.pointAt(s, u0, v0 + size));
             // Corners on the plane (a patch touching r's plane along an edge) do not make a cut.
             const double eps = 1e-9 * diameter;
             if (std::min({h0, h1, h2, h3}) < -eps && std::max({h0, h1, h2, h3}) > eps) order = 0;
@@ -128,8 +130,15 @@ struct Cubature {
 
 AreaFactors unoccludedAreaFactors(const PatchSet& patches, size_t s, size_t r, const CubatureSettings& settings,
                                   uint64_t* evaluations) {
-    Cubature c{patches, s, r, patches.corners[r].data(), patches.cornerCount[r], patches.boundingRadius(s),
-               settings.tolerance, settings.maxDepth, settings.cutDepth};
+    Cubature c{patches,
+               s,
+               r,
+               patches.corners[r].data(),
+               patches.cornerCount[r],
+               patches.boundingRadius(s),
+               settings.tolerance,
+               settings.maxDepth,
+               settings.cutDepth};
     AreaFactors out;
     c.cell(0, 0, 1, 0, out);
     if (evaluations) *evaluations += c.evaluations;

@@ -23,8 +23,8 @@ struct CubatureSettings {
     // axis) from the cell-size-to-distance ratio q by the bound (q/2)^(2 order), and splits cells for
     // which order 3 is not enough.
     double tolerance = 1e-5;
-    int maxDepth = 9;   // cells along a shared edge end at 2^-maxDepth of the patch
-    int cutDepth = 5;   // cells cut by the receiver's plane end at 2^-cutDepth of the patch
+    int maxDepth = 9;  // cells along a shared edge end at 2^-maxDepth of the patch
+    int cutDepth = 5;  // cells cut by the receiver's plane end at 2^-cutDepth of the patch
 };
 
 // Unoccluded area factors from patch s's front face to patch r, split by the face of r the light

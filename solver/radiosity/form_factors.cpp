@@ -64,7 +64,8 @@ ClippedPolygon clipToSide(const PatchSet& p, size_t b, size_t a, const Vec3& sid
     for (int k = 0; k < out.count; ++k) centre += out.v[k];
     centre /= out.count;
     for (int k = 0; k < out.count; ++k) out.v[k] = centre + (1 - 2e-3) * (out.v[k] - centre);
-    for (int k = 1; k + 1 < out.count; ++k) out.area += 0.5 * (out.v[k] - out.v[0]).cross(out.v[k + 1] - out.v[0]).norm();
+    for (int k = 1; k + 1 < out.count; ++k)
+        out.area += 0.5 * (out.v[k] - out.v[0]).cross(out.v[k + 1] - out.v[0]).norm();
     return out;
 }
 
@@ -95,7 +96,6 @@ PlaneSides planeSides(const PatchSet& p, size_t a, size_t b) {
     return sides;
 }
 
-
 Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, size_t b, int sideA, int sideB,
                            bool clipped, int base, uint64_t seed, Stream stream) {
     Rng rng = pairRng(seed, stream, a, b);
@@ -110,7 +110,7 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
         int side = 1;
         while (side * side < count) ++side;
         for (int k = 0; k < count; ++k) {
-            const int sa = k % (side * side), sb = (k * 7 + 3) % (side * side);   // decorrelated strata
+            const int sa = k % (side * side), sb = (k * 7 + 3) % (side * side);  // decorrelated strata
             const Vec3 from = clipped ? uniformPoint(partA, rng) : stratifiedPoint(p, a, sa, side, rng);
             const Vec3 to = clipped ? uniformPoint(partB, rng) : stratifiedPoint(p, b, sb, side, rng);
             ++rays;
@@ -122,8 +122,8 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
     return {double(visible) / rays, rays};
 }
 
-
-FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& scene, const FormFactorSettings& settings) {
+FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& scene,
+                                    const FormFactorSettings& settings) {
     Timer timer;
     const size_t n = patches.size();
     FormFactorMatrix F(n);
@@ -145,8 +145,8 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
                 // Which faces exchange light: a patch sends from its front when the other lies in
                 // front of it; otherwise the other's front reaches its back.
                 const int sideI = jFrontOfI ? 1 : -1, sideJ = iFrontOfJ ? 1 : -1;
-                const Visibility vis = visibleFraction(patches, scene, i, j, sideI, sideJ, clipped, settings.visibilityRays,
-                                                       settings.seed);
+                const Visibility vis = visibleFraction(patches, scene, i, j, sideI, sideJ, clipped,
+                                                       settings.visibilityRays, settings.seed);
                 myRays += uint64_t(vis.rays);
                 if (vis.fraction == 0) {
                     ++myOccluded;
@@ -157,19 +157,22 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
                 if (jFrontOfI && iFrontOfJ) {
                     // Front to front: integrate over the smaller patch, analytically over the larger.
                     const bool iSmaller = patches.area[i] <= patches.area[j];
-                    const AreaFactors g = unoccludedAreaFactors(patches, iSmaller ? i : j, iSmaller ? j : i, cub, &myEvaluations);
+                    const AreaFactors g =
+                        unoccludedAreaFactors(patches, iSmaller ? i : j, iSmaller ? j : i, cub, &myEvaluations);
                     F(i, j) = float(vis.fraction * g.front / patches.area[i]);
                     F(j, i) = float(vis.fraction * g.front / patches.area[j]);
                     // Where one patch straddles the other's plane, part of it sees the other's back:
                     // tested by rays of its own (a block's side is mostly seen from behind through
                     // the block itself), and integrated only when some of them get through.
                     auto backPart = [&](size_t from, size_t to, bool fromIsSource) {
-                        const Visibility vb = visibleFraction(patches, scene, from, to, 1, -1, clipped, settings.visibilityRays,
-                                                              settings.seed, Stream::BackVisibility);
+                        const Visibility vb =
+                            visibleFraction(patches, scene, from, to, 1, -1, clipped, settings.visibilityRays,
+                                            settings.seed, Stream::BackVisibility);
                         myRays += uint64_t(vb.rays);
                         if (vb.fraction == 0) return 0.0;
-                        return vb.fraction *
-                               (fromIsSource ? g.back : unoccludedAreaFactors(patches, from, to, cub, &myEvaluations).back);
+                        return vb.fraction * (fromIsSource
+                                                  ? g.back
+                                                  : unoccludedAreaFactors(patches, from, to, cub, &myEvaluations).back);
                     };
                     const double backIJ = iSeenByJ.straddles() ? backPart(i, j, iSmaller) : 0.0;
                     const double backJI = jSeenByI.straddles() ? backPart(j, i, !iSmaller) : 0.0;
@@ -177,9 +180,11 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
                     if (backJI > 0) myBack.push_back({int(j), int(i), backJI});
                 } else if (jFrontOfI) {
                     // All of i lies behind j's plane: i's front reaches j's back.
-                    myBack.push_back({int(i), int(j), vis.fraction * unoccludedAreaFactor(patches, i, j, cub, &myEvaluations)});
+                    myBack.push_back(
+                        {int(i), int(j), vis.fraction * unoccludedAreaFactor(patches, i, j, cub, &myEvaluations)});
                 } else {
-                    myBack.push_back({int(j), int(i), vis.fraction * unoccludedAreaFactor(patches, j, i, cub, &myEvaluations)});
+                    myBack.push_back(
+                        {int(j), int(i), vis.fraction * unoccludedAreaFactor(patches, j, i, cub, &myEvaluations)});
                 }
             }
             progress.update(int64_t(n - i - 1));

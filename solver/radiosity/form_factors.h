@@ -5,13 +5,11 @@
 // `backTransfers` so the power balance can count it.
 #pragma once
 
-#include "core/rng.h"
-
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
 
-#include <Eigen/Core>
-
+#include "core/rng.h"
 #include "mesh/patches.h"
 #include "solver/radiosity/form_factor_kernel.h"
 #include "solver/visibility.h"
@@ -20,17 +18,17 @@ namespace penumbra {
 
 struct FormFactorSettings {
     CubatureSettings cubature;
-    int visibilityRays = 4;       // per pair; pairs found partly visible get 4x as many
+    int visibilityRays = 4;  // per pair; pairs found partly visible get 4x as many
     uint64_t seed = 1;
 };
 
 struct BackTransfer {
-    int from, to;      // light leaving `from`'s front arrives at `to`'s back
-    double areaFactor; // A_from * F(from -> back of to), m^2
+    int from, to;       // light leaving `from`'s front arrives at `to`'s back
+    double areaFactor;  // A_from * F(from -> back of to), m^2
 };
 
 struct FormFactorStats {
-    uint64_t pairs = 0;            // pairs that face each other (front or back)
+    uint64_t pairs = 0;  // pairs that face each other (front or back)
     uint64_t kernelEvaluations = 0;
     uint64_t rays = 0;
     uint64_t partiallyVisible = 0;

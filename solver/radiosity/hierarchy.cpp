@@ -20,9 +20,9 @@ double brightness(const Rgb& b) { return b.sum() / 3; }
 // A link: receiver r gathers F(r->s) B_s from source s. Structure of arrays, as the sweeps read them.
 struct Links {
     std::vector<int> receiver, source;
-    std::vector<float> visible;      // fraction of the visibility rays that got through
-    std::vector<float> F;            // form factor from the receiver to the source, with visibility (-1: not yet)
-    std::vector<uint8_t> partly;     // the visibility rays disagreed
+    std::vector<float> visible;   // fraction of the visibility rays that got through
+    std::vector<float> F;         // form factor from the receiver to the source, with visibility (-1: not yet)
+    std::vector<uint8_t> partly;  // the visibility rays disagreed
     size_t size() const { return receiver.size(); }
     void add(int r, int s) {
         receiver.push_back(r), source.push_back(s), visible.push_back(0), F.push_back(-1), partly.push_back(0);
@@ -54,8 +54,9 @@ public:
         total_.assign(n, Rgb::Zero());
         power_ = 0;
         for (size_t i = 0; i < n; ++i) power_ += roots.area[i] * brightness(E_[i]);
-        minArea_ = settings.minArea > 0 ? settings.minArea
-                                        : std::accumulate(roots.area.begin(), roots.area.end(), 0.0) / double(n) / 65536;
+        minArea_ = settings.minArea > 0
+                       ? settings.minArea
+                       : std::accumulate(roots.area.begin(), roots.area.end(), 0.0) / double(n) / 65536;
     }
 
     HierarchyResult run() {
@@ -73,8 +74,9 @@ public:
             SolverSettings s = settings_.solver;
             solve(s, out.solution);
             secondsSolve += solveTimer.seconds();
-            logInfo("hierarchy round ", round, ": ", leafCount(), " leaves of ", nodes_.size(), " elements, ", links_.size(),
-                    " links; ", out.solution.iterations, " iterations to residual ", out.solution.residual);
+            logInfo("hierarchy round ", round, ": ", leafCount(), " leaves of ", nodes_.size(), " elements, ",
+                    links_.size(), " links; ", out.solution.iterations, " iterations to residual ",
+                    out.solution.residual);
             out.stats.rounds = round;
             if (round >= settings_.maxRounds) break;
             Timer t;
@@ -94,9 +96,7 @@ public:
     }
 
 private:
-    bool facing(size_t a, size_t b) const {
-        return planeSides(nodes_, a, b).front && planeSides(nodes_, b, a).front;
-    }
+    bool facing(size_t a, size_t b) const { return planeSides(nodes_, a, b).front && planeSides(nodes_, b, a).front; }
     // Children may be half the finest patch area asked for: leaves then span the sizes about it.
     bool splittable(int i) const { return nodes_.area[size_t(i)] >= 2 * minArea_; }
 
@@ -107,7 +107,9 @@ private:
         const Vec3& c = nodes_.centroid[size_t(r)];
         double best = pointToDisc(c, r, s);
         for (int k = 0; k < nodes_.cornerCount[size_t(r)]; ++k)
-            best = std::max(best, pointToDisc(nodes_.corners[size_t(r)][size_t(k)] + 0.1 * (c - nodes_.corners[size_t(r)][size_t(k)]), r, s));
+            best = std::max(best, pointToDisc(nodes_.corners[size_t(r)][size_t(k)] +
+                                                  0.1 * (c - nodes_.corners[size_t(r)][size_t(k)]),
+                                              r, s));
         return best;
     }
     double pointToDisc(const Vec3& x, int r, int s) const {
@@ -126,7 +128,7 @@ private:
         const int first = int(nodes_.size());
         for (const auto& c : children) {
             nodes_.add(c, nodes_.cornerCount[size_t(i)], nodes_.object[size_t(i)], {0, 0, 0, 0});
-            PENUMBRA_CHECK_EQ(nodes_.size(), parent_.size() + 1);   // a child of a real patch has area
+            PENUMBRA_CHECK_EQ(nodes_.size(), parent_.size() + 1);  // a child of a real patch has area
             parent_.push_back(i);
             firstChild_.push_back(-1);
             rho_.push_back(rho_[size_t(i)]);
@@ -141,21 +143,24 @@ private:
     // Rays for the links in `list` from `begin` on, in parallel (the elements do not change meanwhile).
     void testVisibility(Links& list, size_t begin) {
         std::atomic<uint64_t> rays{0};
-        parallelFor(int64_t(list.size() - begin), [&](int64_t b, int64_t e) {
-            prepareTracingThread();
-            uint64_t mine = 0;
-            for (int64_t k = b; k < e; ++k) {
-                const size_t l = begin + size_t(k);
-                const size_t r = size_t(list.receiver[l]), s = size_t(list.source[l]);
-                const bool clipped = planeSides(nodes_, r, s).straddles() || planeSides(nodes_, s, r).straddles();
-                const Visibility v = visibleFraction(nodes_, rays_, std::min(r, s), std::max(r, s), 1, 1, clipped,
-                                                     settings_.visibilityRays, settings_.seed);
-                mine += uint64_t(v.rays);
-                list.visible[l] = float(v.fraction);
-                list.partly[l] = v.fraction > 0 && v.fraction < 1;
-            }
-            rays += mine;
-        }, 64);
+        parallelFor(
+            int64_t(list.size() - begin),
+            [&](int64_t b, int64_t e) {
+                prepareTracingThread();
+                uint64_t mine = 0;
+                for (int64_t k = b; k < e; ++k) {
+                    const size_t l = begin + size_t(k);
+                    const size_t r = size_t(list.receiver[l]), s = size_t(list.source[l]);
+                    const bool clipped = planeSides(nodes_, r, s).straddles() || planeSides(nodes_, s, r).straddles();
+                    const Visibility v = visibleFraction(nodes_, rays_, std::min(r, s), std::max(r, s), 1, 1, clipped,
+                                                         settings_.visibilityRays, settings_.seed);
+                    mine += uint64_t(v.rays);
+                    list.visible[l] = float(v.fraction);
+                    list.partly[l] = v.fraction > 0 && v.fraction < 1;
+                }
+                rays += mine;
+            },
+            64);
         stats_.rays += rays;
     }
 
@@ -178,8 +183,12 @@ private:
                 const double limit = settings_.linkTolerance * power_;
                 const bool needs = carried > limit || (pending.partly[at] && carried > 0.1 * limit);
                 const bool big = nodes_.area[size_t(r)] >= nodes_.area[size_t(s)];
-                const int split = needs ? (big ? (splittable(r) ? r : splittable(s) ? s : -1)
-                                               : (splittable(s) ? s : splittable(r) ? r : -1))
+                const int split = needs ? (big ? (splittable(r)   ? r
+                                                  : splittable(s) ? s
+                                                                  : -1)
+                                               : (splittable(s)   ? s
+                                                  : splittable(r) ? r
+                                                                  : -1))
                                         : -1;
                 // A link the rays found hidden still splits if it would carry too much unhidden:
                 // four rays miss a partly visible pair of large elements often, and dropping the
@@ -206,18 +215,22 @@ private:
     void formFactors() {
         std::atomic<uint64_t> evaluations{0};
         const size_t n = links_.size();
-        parallelFor(int64_t(n), [&](int64_t b, int64_t e) {
-            uint64_t mine = 0;
-            for (int64_t k = b; k < e; ++k) {
-                const size_t l = size_t(k);
-                if (links_.F[l] >= 0) continue;   // kept from an earlier round
-                const size_t r = size_t(links_.receiver[l]), s = size_t(links_.source[l]);
-                const bool rSmaller = nodes_.area[r] <= nodes_.area[s];
-                const AreaFactors g = unoccludedAreaFactors(nodes_, rSmaller ? r : s, rSmaller ? s : r, settings_.cubature, &mine);
-                links_.F[l] = float(double(links_.visible[l]) * g.front / nodes_.area[r]);
-            }
-            evaluations += mine;
-        }, 256);
+        parallelFor(
+            int64_t(n),
+            [&](int64_t b, int64_t e) {
+                uint64_t mine = 0;
+                for (int64_t k = b; k < e; ++k) {
+                    const size_t l = size_t(k);
+                    if (links_.F[l] >= 0) continue;  // kept from an earlier round
+                    const size_t r = size_t(links_.receiver[l]), s = size_t(links_.source[l]);
+                    const bool rSmaller = nodes_.area[r] <= nodes_.area[s];
+                    const AreaFactors g =
+                        unoccludedAreaFactors(nodes_, rSmaller ? r : s, rSmaller ? s : r, settings_.cubature, &mine);
+                    links_.F[l] = float(double(links_.visible[l]) * g.front / nodes_.area[r]);
+                }
+                evaluations += mine;
+            },
+            256);
         stats_.kernelEvaluations += evaluations;
         // Receivers together, in element order: the gather walks them so.
         std::vector<size_t> order(links_.size());
@@ -282,14 +295,17 @@ private:
     }
 
     void gather() {
-        parallelFor(int64_t(nodes_.size()), [&](int64_t b, int64_t e) {
-            for (int64_t i = b; i < e; ++i) {
-                Rgb h = Rgb::Zero();
-                for (size_t l = linkStart_[size_t(i)]; l < linkStart_[size_t(i) + 1]; ++l)
-                    h += double(links_.F[l]) * B_[size_t(links_.source[l])];
-                H_[size_t(i)] = h;
-            }
-        }, 256);
+        parallelFor(
+            int64_t(nodes_.size()),
+            [&](int64_t b, int64_t e) {
+                for (int64_t i = b; i < e; ++i) {
+                    Rgb h = Rgb::Zero();
+                    for (size_t l = linkStart_[size_t(i)]; l < linkStart_[size_t(i) + 1]; ++l)
+                        h += double(links_.F[l]) * B_[size_t(links_.source[l])];
+                    H_[size_t(i)] = h;
+                }
+            },
+            256);
     }
 
     size_t rootCount() const {
@@ -330,10 +346,10 @@ private:
 
     const RayScene& rays_;
     const HierarchySettings& settings_;
-    PatchSet nodes_;                         // every element: roots first, then children in fours
+    PatchSet nodes_;  // every element: roots first, then children in fours
     std::vector<int> parent_, firstChild_;
     std::vector<Rgb> rho_, E_, B_, H_, total_;
-    Links links_;                            // kept links, by receiver once the form factors are known
+    Links links_;  // kept links, by receiver once the form factors are known
     std::vector<size_t> linkStart_;
     double power_ = 0, minArea_ = 0;
     HierarchyStats stats_;

@@ -26,7 +26,7 @@ struct HierarchySettings {
     double minArea = 0;           // elements are not split below this area, m^2 (0: roots / 4^8)
     int visibilityRays = 4;       // per link; partly visible links get four times as many
     CubatureSettings cubature{1e-3, 9, 5};
-    int maxRounds = 12;           // refine-then-solve rounds
+    int maxRounds = 12;  // refine-then-solve rounds
     SolverSettings solver;
     uint64_t seed = 1;
 };
@@ -35,16 +35,16 @@ struct HierarchyStats {
     size_t roots = 0, elements = 0, leaves = 0, links = 0;
     uint64_t rays = 0, partlyVisibleLinks = 0, kernelEvaluations = 0;
     int rounds = 0;
-    double bytes = 0;                 // elements and links as stored
+    double bytes = 0;  // elements and links as stored
     double secondsLinks = 0, secondsSolve = 0;
 };
 
 struct HierarchyResult {
-    PatchSet leaves;                  // the finest elements, as patches (display vertices shared)
-    std::vector<Rgb> B;               // exitance per leaf, W/m^2
-    std::vector<Rgb> absorbed;        // power absorbed per leaf, W
-    Rgb escaped = Rgb::Zero();        // what leaves the surfaces and reaches none of them, W
-    RadiositySolution solution;       // iterations, residual and history of the last round
+    PatchSet leaves;             // the finest elements, as patches (display vertices shared)
+    std::vector<Rgb> B;          // exitance per leaf, W/m^2
+    std::vector<Rgb> absorbed;   // power absorbed per leaf, W
+    Rgb escaped = Rgb::Zero();   // what leaves the surfaces and reaches none of them, W
+    RadiositySolution solution;  // iterations, residual and history of the last round
     HierarchyStats stats;
 };
 

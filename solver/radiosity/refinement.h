@@ -20,18 +20,19 @@ struct RefineSettings {
     // than this fraction (of B, floored at a tenth of the scene's mean), or where a shadow edge
     // carries more than this fraction of a patch's light.
     double tolerance = 0;
-    int maxPatches = 10000;   // the budget: no round goes past it
+    int maxPatches = 10000;  // the budget: no round goes past it
     int maxRounds = 12;
-    int maxLevels = 5;        // patches end at 2^-maxLevels of the first mesh's edge length
+    int maxLevels = 5;  // patches end at 2^-maxLevels of the first mesh's edge length
 };
 
 struct SplitChoice {
     std::vector<char> split;
-    size_t byGradient = 0, byShadow = 0;   // a patch marked for both counts under both
+    size_t byGradient = 0, byShadow = 0;  // a patch marked for both counts under both
 };
 
 // Marks the patches to split, best first within the budget (up to `maxSplits` of them).
-SplitChoice chooseSplits(const PatchSet& patches, const RadiositySystem& system, const FormFactorMatrix& F, const std::vector<Rgb>& B,
-                         const CornerValues& corners, const RayScene& rays, const RefineSettings& settings, double minArea, size_t maxSplits);
+SplitChoice chooseSplits(const PatchSet& patches, const RadiositySystem& system, const FormFactorMatrix& F,
+                         const std::vector<Rgb>& B, const CornerValues& corners, const RayScene& rays,
+                         const RefineSettings& settings, double minArea, size_t maxSplits);
 
 }  // namespace penumbra

@@ -24,8 +24,8 @@ struct ConvergenceStep {
 };
 
 struct RadiositySolution {
-    std::vector<Rgb> B;         // exitance, W/m^2: what the report and the power balance use
-    std::vector<Rgb> display;   // B plus the ambient estimate of light not yet shot (Southwell)
+    std::vector<Rgb> B;        // exitance, W/m^2: what the report and the power balance use
+    std::vector<Rgb> display;  // B plus the ambient estimate of light not yet shot (Southwell)
     int iterations = 0;
     double residual = 0;
     bool converged = false;

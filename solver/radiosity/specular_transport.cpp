@@ -20,8 +20,8 @@ struct Fate {
 };
 
 struct RowResult {
-    std::vector<std::pair<int, Rgb>> delivered;   // target patch, S(i -> j)
-    std::vector<std::pair<int, Rgb>> lost;        // object, share absorbed
+    std::vector<std::pair<int, Rgb>> delivered;  // target patch, S(i -> j)
+    std::vector<std::pair<int, Rgb>> lost;       // object, share absorbed
     double unresolved = 0;
     int64_t rays = 0;
 };
@@ -83,19 +83,24 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                 const int g = group[size_t(h.object)];
                 ++hits[size_t(g)];
                 // What a mirror or a glass tint keeps is absorbed there.
-                const SpecularWalk w = walkSpecular(tracer, h, d, rng, settings.maxDepth, 0.0,
-                                                    [&](int object, const Rgb& kept) { fates.push_back({g, object, false, kept}); });
+                const SpecularWalk w =
+                    walkSpecular(tracer, h, d, rng, settings.maxDepth, 0.0, [&](int object, const Rgb& kept) {
+                        fates.push_back({g, object, false, kept});
+                    });
                 row.rays += w.bounces;
                 switch (w.end) {
-                case WalkEnd::Escaped: break;   // out of the scene: the remainder of the balance
-                case WalkEnd::Diffuse:
-                    if (w.hit.frontFacing(w.dir))
-                        fates.push_back({g, w.hit.patch, true, w.throughput});
-                    else
+                    case WalkEnd::Escaped:
+                        break;  // out of the scene: the remainder of the balance
+                    case WalkEnd::Diffuse:
+                        if (w.hit.frontFacing(w.dir))
+                            fates.push_back({g, w.hit.patch, true, w.throughput});
+                        else
+                            fates.push_back({g, w.hit.object, false, w.throughput});
+                        break;
+                    case WalkEnd::Absorbed:
+                    case WalkEnd::TooDeep:
                         fates.push_back({g, w.hit.object, false, w.throughput});
-                    break;
-                case WalkEnd::Absorbed:
-                case WalkEnd::TooDeep: fates.push_back({g, w.hit.object, false, w.throughput}); break;
+                        break;
                 }
             }
             // Each ray that met object g first carries F(i, g) / hits(g) of patch i's light.

@@ -33,8 +33,8 @@ ChannelPlanes::ChannelPlanes(const std::vector<Rgb>& B) {
 // target_clones builds the loop for AVX2 with FMA as well as for the baseline, chosen when the
 // program loads. The sums stay in double: summing in float (twice the vector width) was measured
 // 1.3x faster but loses a 1e-6 lamp beside a 1e6 one (the twelve-orders test).
-__attribute__((target_clones("arch=haswell", "default")))
-Rgb rowIrradiance(const FormFactorMatrix& F, size_t i, const ChannelPlanes& B) {
+__attribute__((target_clones("arch=haswell", "default"))) Rgb rowIrradiance(const FormFactorMatrix& F, size_t i,
+                                                                            const ChannelPlanes& B) {
     const float* row = F.row(i);
     const double *b0 = B.c[0].data(), *b1 = B.c[1].data(), *b2 = B.c[2].data();
     const size_t n = F.size();
@@ -53,9 +53,12 @@ std::vector<Rgb> gatherIrradiance(const RadiositySystem& s, const FormFactorMatr
     const size_t n = F.size();
     const ChannelPlanes planes(B);
     std::vector<Rgb> H(n);
-    parallelFor(int64_t(n), [&](int64_t begin, int64_t end) {
-        for (int64_t i = begin; i < end; ++i) H[size_t(i)] = irradianceAt(s, F, size_t(i), B, planes);
-    }, 16);
+    parallelFor(
+        int64_t(n),
+        [&](int64_t begin, int64_t end) {
+            for (int64_t i = begin; i < end; ++i) H[size_t(i)] = irradianceAt(s, F, size_t(i), B, planes);
+        },
+        16);
     return H;
 }
 
@@ -84,7 +87,7 @@ PowerBalance powerBalance(const RadiositySystem& s, const FormFactorMatrix& F, c
     p.emitted.resize(n);
     p.absorbed.assign(n, Rgb::Zero());
     Rgb leaving = Rgb::Zero(), arriving = Rgb::Zero();
-    std::vector<int> firstPatch;   // of each object, to book what an object absorbs as a whole
+    std::vector<int> firstPatch;  // of each object, to book what an object absorbs as a whole
     for (size_t i = 0; i < n; ++i) {
         p.emitted[i] = s.area[i] * s.emission[i];
         leaving += s.area[i] * B[i];

@@ -15,12 +15,12 @@
 namespace penumbra {
 
 struct RadiositySystem {
-    std::vector<double> area;        // m^2
-    std::vector<Rgb> reflectance;    // diffuse albedo of the front face
-    std::vector<Rgb> emission;       // exitance E = pi L_e of the front face, W/m^2
-    std::vector<int> object;         // the scene object of each patch
-    std::vector<char> specular;      // 1 for mirror and glass patches
-    SpecularTransport transport;     // empty without mirrors and glass
+    std::vector<double> area;      // m^2
+    std::vector<Rgb> reflectance;  // diffuse albedo of the front face
+    std::vector<Rgb> emission;     // exitance E = pi L_e of the front face, W/m^2
+    std::vector<int> object;       // the scene object of each patch
+    std::vector<char> specular;    // 1 for mirror and glass patches
+    SpecularTransport transport;   // empty without mirrors and glass
 
     size_t size() const { return area.size(); }
 };
