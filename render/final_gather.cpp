@@ -55,21 +55,14 @@ double misWeight(int na, double pa, int nb, double pb) {
 
 Rgb FinalGather::directIrradiance(const SurfaceHit& x, Rng& rng, int samples, int gatherRays) const {
     if (!tracer_.hasEmitters()) return Rgb::Zero();
-    const Vec3 from = x.point + tracer_.epsilon() * x.normal;
     Rgb sum = Rgb::Zero();
     for (int s = 0; s < samples; ++s) {
-        const EmitterSample e = tracer_.sampleEmitter(rng);
-        Vec3 w = e.point - x.point;
-        const double d2 = w.squaredNorm();
-        w /= std::sqrt(d2);
-        const double cosX = x.normal.dot(w), cosL = -e.normal.dot(w);
-        if (cosX <= 0 || cosL <= 0) continue;
-        if (!tracer_.visible(from, e.point + tracer_.epsilon() * e.normal)) continue;
+        const LightSample l = tracer_.sampleLight(x.point, x.normal, rng);
+        if (!l.found()) continue;
         // Emitters are also found by the gather rays: the two estimates are combined by multiple
         // importance sampling (power heuristic), which tames the 1/d^2 of points near an emitter.
-        const double lightPdf = e.pdfArea * d2 / cosL;
-        const double weight = misWeight(samples, lightPdf, gatherRays, cosX * kInvPi);
-        sum += e.radiance * (cosX / lightPdf * weight);
+        const double weight = misWeight(samples, l.pdf, gatherRays, l.cosine * kInvPi);
+        sum += l.radiance * (l.cosine / l.pdf * weight);
     }
     return sum / samples;
 }

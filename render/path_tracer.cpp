@@ -43,16 +43,10 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
         const Vec3 x = tracer.offset(hit, -d);
         // Next-event estimation: one point on the emitters.
         if (tracer.hasEmitters()) {
-            const EmitterSample e = tracer.sampleEmitter(rng);
-            Vec3 w = e.point - hit.point;
-            const double d2 = w.squaredNorm();
-            w /= std::sqrt(d2);
-            const double cosX = hit.normal.dot(w), cosL = -e.normal.dot(w);
-            if (cosX > 0 && cosL > 0 && tracer.visible(x, e.point + tracer.epsilon() * e.normal)) {
-                const double lightPdf = e.pdfArea * d2 / cosL;
-                L += throughput * m.reflectance * kInvPi * e.radiance * (cosX / lightPdf) *
-                     powerHeuristic(lightPdf, cosX * kInvPi);
-            }
+            const LightSample l = tracer.sampleLight(hit.point, hit.normal, rng);
+            if (l.found())
+                L += throughput * m.reflectance * kInvPi * l.radiance * (l.cosine / l.pdf) *
+                     powerHeuristic(l.pdf, l.cosine * kInvPi);
         }
         // Cosine-sampled bounce: f cos / pdf = rho.
         d = cosineDirection(hit.normal, rng);

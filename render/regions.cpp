@@ -89,17 +89,10 @@ std::vector<char> causticMask(const SceneTracer& tracer, const PhotonMap& causti
                     continue;
                 caustic[size_t(k)] = caustics.irradiance(x.point, x.normal).sum();
                 Rng rng = streamRng(0, Stream::CausticRegion, uint64_t(k));
-                const Vec3 from = x.point + tracer.epsilon() * x.normal;
                 double sum = 0;
                 for (int s = 0; s < lightSamples; ++s) {
-                    const EmitterSample e = tracer.sampleEmitter(rng);
-                    Vec3 w = e.point - x.point;
-                    const double d2 = w.squaredNorm();
-                    w /= std::sqrt(d2);
-                    const double cosX = x.normal.dot(w), cosL = -e.normal.dot(w);
-                    if (cosX <= 0 || cosL <= 0 || !tracer.visible(from, e.point + tracer.epsilon() * e.normal))
-                        continue;
-                    sum += e.radiance.sum() * cosX * cosL / (e.pdfArea * d2);
+                    const LightSample l = tracer.sampleLight(x.point, x.normal, rng);
+                    if (l.found()) sum += l.radiance.sum() * l.cosine / l.pdf;
                 }
                 direct[size_t(k)] = sum / lightSamples;
             }

@@ -138,6 +138,22 @@ SurfaceHit SceneTracer::trace(const Vec3& origin, const Vec3& dir, double tMin) 
 
 bool SceneTracer::visible(const Vec3& a, const Vec3& b) const { return !rays_->occluded(a, b, 1e-7); }
 
+LightSample SceneTracer::sampleLight(const Vec3& x, const Vec3& n, Rng& rng) const {
+    const EmitterSample e = sampleEmitter(rng);
+    LightSample l;
+    Vec3 w = e.point - x;
+    const double d2 = w.squaredNorm();
+    w /= std::sqrt(d2);
+    const double cosX = n.dot(w), cosL = -e.normal.dot(w);
+    if (cosX <= 0 || cosL <= 0) return l;
+    if (!visible(x + epsilon_ * n, e.point + epsilon_ * e.normal)) return l;
+    l.radiance = e.radiance;
+    l.dir = w;
+    l.cosine = cosX;
+    l.pdf = e.pdfArea * d2 / cosL;
+    return l;
+}
+
 EmitterSample SceneTracer::sampleEmitter(Rng& rng) const {
     PENUMBRA_CHECK(!emitterCdf_.empty());
     const double u = rng.uniform();

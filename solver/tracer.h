@@ -29,6 +29,16 @@ struct SurfaceHit {
     bool frontFacing(const Vec3& dir) const { return normal.dot(dir) < 0; }
 };
 
+// Light from one point on the emitters as seen from a surface point: what next-event estimation,
+// the final gather's direct light and the caustic region all use.
+struct LightSample {
+    Rgb radiance = Rgb::Zero();  // L_e arriving along `dir`
+    Vec3 dir = Vec3::Zero();     // unit, from the surface point to the emitter point
+    double cosine = 0;           // of `dir` with the surface's normal
+    double pdf = 0;              // solid-angle density of `dir`; 0 when the point is not seen
+    bool found() const { return pdf > 0; }
+};
+
 struct EmitterSample {
     Vec3 point, normal;  // on an emitting patch, its front normal
     Rgb radiance;        // L_e
@@ -60,6 +70,9 @@ public:
     bool hasSpecular() const { return hasSpecular_; }
     // A point on the emitters, chosen in proportion to emitted power (sum over channels).
     EmitterSample sampleEmitter(Rng& rng) const;
+    // A point on the emitters (sampleEmitter) as seen from x on a surface of unit normal n: not found
+    // when it lies behind the surface, faces away from x, or something hides it.
+    LightSample sampleLight(const Vec3& x, const Vec3& n, Rng& rng) const;
     // The density per m^2 with which sampleEmitter picks points on `patch` (0 if it does not emit).
     double emitterPdfArea(int patch) const { return patch >= 0 ? emitterPdf_[size_t(patch)] : 0; }
     // Power emitted by all surfaces, W per channel.
