@@ -57,11 +57,7 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
                     Rgb specular = Rgb::Zero();
                     if (patchShare > 0) {
                         double pointShare = 0;
-                        for (size_t j : specularPatches) {
-                            const double f =
-                                pointPolygonFormFactor(x, p.normal[i], p.corners[j].data(), p.cornerCount[j]);
-                            if (f > 0 && !rays.occluded(x, p.centroid[j], 1e-3)) pointShare += f;
-                        }
+                        for (size_t j : specularPatches) pointShare += visiblePointFactor(p, rays, x, p.normal[i], j);
                         specular = viaSpecular * (pointShare / patchShare);
                     }
                     own[i][size_t(k)] = s.emission[i] + s.reflectance[i] * (h + specular);

@@ -18,19 +18,22 @@
 
 namespace penumbra {
 
-// Irradiance at the point x (unit normal n) from the patches j with sees(j), W/m^2. The ray to a
-// patch's centroid gives up the last thousandth of its length at each end: the centroid of a patch
+// The form factor from the point x (unit normal n) to patch j, 0 where the ray to j's centroid is
+// blocked. That ray gives up the last thousandth of its length at each end: the centroid of a patch
 // of a non-planar quad (the Cornell box's walls) lies a little off the two triangles Embree traces,
 // and must not hide behind its own wall.
+inline double visiblePointFactor(const PatchSet& p, const RayScene& rays, const Vec3& x, const Vec3& n, size_t j) {
+    const double f = pointPolygonFormFactor(x, n, p.corners[j].data(), p.cornerCount[j]);
+    return f > 0 && !rays.occluded(x, p.centroid[j], 1e-3) ? f : 0;
+}
+
+// Irradiance at the point x (unit normal n) from the patches j with sees(j), W/m^2.
 template <typename Sees>
 Rgb irradianceAtPoint(const PatchSet& p, const std::vector<Rgb>& B, const RayScene& rays, const Vec3& x, const Vec3& n,
                       const Sees& sees) {
     Rgb h = Rgb::Zero();
-    for (size_t j = 0; j < p.size(); ++j) {
-        if (!sees(j) || !(B[j].maxCoeff() > 0)) continue;
-        const double f = pointPolygonFormFactor(x, n, p.corners[j].data(), p.cornerCount[j]);
-        if (f > 0 && !rays.occluded(x, p.centroid[j], 1e-3)) h += f * B[j];
-    }
+    for (size_t j = 0; j < p.size(); ++j)
+        if (sees(j) && B[j].maxCoeff() > 0) h += visiblePointFactor(p, rays, x, n, j) * B[j];
     return h;
 }
 
