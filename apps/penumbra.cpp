@@ -227,7 +227,7 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
 
     Timer timer;
     const std::vector<Image> images = entry.render(
-        RenderInputs{scene, stored.patches, stored.corners, c.gather, c.photons, common.seed}, cameras, spp);
+        RenderInputs{scene, stored.patches, stored.corners, nullptr, c.gather, c.photons, common.seed}, cameras, spp);
     const double seconds = timer.seconds();
 
     // Everything is rendered before the first file is written.

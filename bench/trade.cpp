@@ -176,7 +176,7 @@ struct SolveRecord {
     PatchSet patches;
     std::vector<Rgb> B, display;
     std::vector<std::array<Rgb, 4>> corners;
-    std::shared_ptr<RayScene> rays;
+    std::shared_ptr<const RayScene> rays;
     double meshing = 0, formFactors = 0, specular = 0, solve = 0, peakMiB = 0, matrixMiB = 0, storageMiB = 0;
     uint64_t rayCount = 0, formFactorRays = 0, links = 0;
     std::vector<Rgb> objectMean;  // area-weighted mean B per object
@@ -391,7 +391,8 @@ Row Bench::runOne(const Setting& s) {
             photons.nearest = s.photonK;
             Timer setup;
             const auto solved = quietly([&] {
-                return std::make_unique<SolvedScene>(scene_, rec.patches, rec.corners, gather, photons, options_.seed);
+                return std::make_unique<SolvedScene>(scene_, rec.patches, rec.corners, gather, photons, options_.seed,
+                                                     rec.rays);
             });
             row.photons = setup.seconds();
             const uint64_t rays1 = raysCast();
@@ -456,8 +457,8 @@ void Bench::measureThreads(BenchResult& result) {
     const Camera cam = camera();
     const SolveRecord& rec = solveFor(baseSetting(baseline_, "final-gather", "default"));
     const auto solved = quietly([&] {
-        return std::make_unique<SolvedScene>(scene_, rec.patches, rec.display, GatherSettings{}, PhotonSettings{},
-                                             options_.seed);
+        return std::make_unique<SolvedScene>(scene_, rec.patches, interpolateCorners(rec.patches, rec.display),
+                                             GatherSettings{}, PhotonSettings{}, options_.seed, rec.rays);
     });
     const int spp = options_.quick ? 1 : 4;
     auto gather = [&] { return solved->render(cam, spp, options_.seed).rgb; };

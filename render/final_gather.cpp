@@ -101,8 +101,9 @@ Image renderFinalGather(const FinalGather& gather, const Camera& camera, int sam
 }
 
 SolvedScene::SolvedScene(const Scene& scene, const PatchSet& patches, CornerValues cornerRadiosity,
-                         const GatherSettings& settings, PhotonSettings photons, uint64_t seed)
-    : corners_(std::move(cornerRadiosity)), tracer_(std::make_unique<SceneTracer>(scene, patches)) {
+                         const GatherSettings& settings, PhotonSettings photons, uint64_t seed,
+                         std::shared_ptr<const RayScene> rays)
+    : corners_(std::move(cornerRadiosity)), tracer_(std::make_unique<SceneTracer>(scene, patches, std::move(rays))) {
     if (tracer_->hasSpecular()) {
         photons.seed = seed;
         caustics_ = std::make_unique<PhotonMap>(*tracer_, photons);

@@ -65,8 +65,10 @@ Image renderFinalGather(const FinalGather& gather, const Camera& camera, int sam
 // `radiosity` is B per patch of `patches`; both must outlive this object.
 class SolvedScene {
 public:
+    // `rays`: the mesh's ray scene (buildRayScene), built here if null.
     SolvedScene(const Scene& scene, const PatchSet& patches, CornerValues cornerRadiosity,
-                const GatherSettings& settings, PhotonSettings photons, uint64_t seed);
+                const GatherSettings& settings, PhotonSettings photons, uint64_t seed,
+                std::shared_ptr<const RayScene> rays = nullptr);
     // With corner values interpolated from B per patch (interpolateCorners).
     SolvedScene(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity,
                 const GatherSettings& settings, PhotonSettings photons, uint64_t seed)

@@ -8,26 +8,30 @@
 namespace penumbra {
 namespace {
 
+std::shared_ptr<const RayScene> raysOf(const RenderInputs& in) {
+    return in.rays ? in.rays : buildRayScene(in.scene, in.patches);
+}
+
 std::vector<Image> renderFinalGatherViews(const RenderInputs& in, const std::vector<Camera>& cameras, int spp) {
     // The ray scene and the photon map serve every view of an orbit.
-    const SolvedScene solved(in.scene, in.patches, in.corners, in.gather, in.photons, in.seed);
+    const SolvedScene solved(in.scene, in.patches, in.corners, in.gather, in.photons, in.seed, raysOf(in));
     std::vector<Image> images;
     for (const Camera& camera : cameras) images.push_back(solved.render(camera, spp, in.seed));
     return images;
 }
 
 std::vector<Image> renderPathViews(const RenderInputs& in, const std::vector<Camera>& cameras, int spp) {
-    const SceneTracer tracer(in.scene, in.patches);
+    const SceneTracer tracer(in.scene, in.patches, raysOf(in));
     std::vector<Image> images;
     for (const Camera& camera : cameras) images.push_back(renderPath(tracer, camera, spp, in.seed));
     return images;
 }
 
 std::vector<Image> renderRadiosityViews(const RenderInputs& in, const std::vector<Camera>& cameras, int spp) {
-    const RayScene rays(in.patches);
+    const std::shared_ptr<const RayScene> rays = raysOf(in);
     std::vector<Image> images;
     for (const Camera& camera : cameras)
-        images.push_back(renderRadiosityView(in.scene, camera, in.patches, rays, in.corners, {spp, in.seed}));
+        images.push_back(renderRadiosityView(in.scene, camera, in.patches, *rays, in.corners, {spp, in.seed}));
     return images;
 }
 

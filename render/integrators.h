@@ -4,6 +4,7 @@
 // and the default sample counts all come from the table.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,7 @@
 #include "render/final_gather.h"
 #include "render/image.h"
 #include "render/photon_map.h"
+#include "solver/visibility.h"
 
 namespace penumbra {
 
@@ -21,6 +23,7 @@ struct RenderInputs {
     const Scene& scene;
     const PatchSet& patches;
     const CornerValues& corners;
+    std::shared_ptr<const RayScene> rays;  // the mesh's ray scene (buildRayScene); built here if null
     GatherSettings gather;
     PhotonSettings photons;
     uint64_t seed = 1;

@@ -85,7 +85,7 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
 
     Timer ffTimer;
     r.F = FormFactorMatrix();  // the previous round's matrix goes before the next one is made
-    r.rays = std::make_shared<RayScene>(r.patches);
+    r.rays = buildRayScene(scene, r.patches);
     r.F = computeFormFactors(r.patches, *r.rays, options.formFactors);
     r.secondsFormFactors += ffTimer.seconds();
     const std::vector<double> rows = rowSums(r.F);
@@ -94,7 +94,7 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
 
     r.system = buildSystem(scene, r.patches);
     if (scene.hasSpecular()) {
-        const SceneTracer tracer(scene, r.patches);
+        const SceneTracer tracer(scene, r.patches, r.rays);
         SpecularSettings specular = options.specular;
         specular.seed = options.formFactors.seed;
         r.system.transport = computeSpecularTransport(scene, r.patches, r.F, tracer, specular);
@@ -156,14 +156,14 @@ void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveRes
                                                        : std::sqrt(sceneArea(scene) / options.meshing.targetPatches);
         settings.minArea = h * h;
     }
-    const RayScene rootRays(roots);
+    const std::shared_ptr<const RayScene> rootRays = buildRayScene(scene, roots);
     r.secondsMeshing = meshTimer.seconds();
-    HierarchyResult h = solveHierarchy(scene, roots, rootRays, settings);
+    HierarchyResult h = solveHierarchy(scene, roots, *rootRays, settings);
     r.hierarchy = h.stats;
     r.secondsFormFactors = h.stats.secondsLinks;
     r.secondsSolve = h.stats.secondsSolve;
     r.patches = std::move(h.leaves);
-    r.rays = std::make_shared<RayScene>(r.patches);
+    r.rays = buildRayScene(scene, r.patches);
     r.system = buildSystem(scene, r.patches);
     r.solution = std::move(h.solution);
     r.solution.B = h.B;

@@ -42,7 +42,7 @@ struct SolveResult {
     std::string solverReason;  // why auto chose it (empty when named)
     HierarchyStats hierarchy;  // --solver hierarchical only
     PatchSet patches;
-    std::shared_ptr<RayScene> rays;  // the patches' ray-tracing scene, for views of the result
+    std::shared_ptr<const RayScene> rays;  // the mesh's one ray scene (buildRayScene), shared by all that trace it
     FormFactorMatrix F;
     RadiositySystem system;
     RadiositySolution solution;

@@ -21,7 +21,34 @@ bool exactSphere(const Scene& scene, const SceneObject& o, RaySphere& out) {
     return true;
 }
 
+// The exact spheres of a scene, with the object each stands for (-1 per object that has none).
+struct ExactSpheres {
+    std::vector<RaySphere> spheres;
+    std::vector<int> sphereObject;  // per sphere
+    std::vector<int> objectSphere;  // per object
+};
+
+ExactSpheres findExactSpheres(const Scene& scene) {
+    ExactSpheres out;
+    out.objectSphere.assign(scene.objects.size(), -1);
+    for (size_t o = 0; o < scene.objects.size(); ++o) {
+        RaySphere s;
+        if (!exactSphere(scene, scene.objects[o], s)) continue;
+        out.objectSphere[o] = int(out.spheres.size());
+        out.spheres.push_back(s);
+        out.sphereObject.push_back(int(o));
+    }
+    return out;
+}
+
 }  // namespace
+
+std::shared_ptr<const RayScene> buildRayScene(const Scene& scene, const PatchSet& patches) {
+    const ExactSpheres exact = findExactSpheres(scene);
+    std::vector<char> replaced(patches.size(), 0);
+    for (size_t i = 0; i < patches.size(); ++i) replaced[i] = exact.objectSphere[size_t(patches.object[i])] >= 0;
+    return std::make_shared<const RayScene>(patches, exact.spheres, replaced);
+}
 
 int specularBranches(const SurfaceHit& hit, const Vec3& dir, SpecularBranch out[2]) {
     const Material& m = *hit.material;
@@ -75,23 +102,18 @@ Vec3 samplePatchPoint(const PatchSet& patches, size_t i, double u1, double u2, d
     return (1 - r) * a + r * (1 - u2) * b + r * u2 * d;
 }
 
-SceneTracer::SceneTracer(const Scene& scene, const PatchSet& patches) : scene_(scene), patches_(patches) {
-    std::vector<int> objectSphere(scene.objects.size(), -1);
-    for (size_t o = 0; o < scene.objects.size(); ++o) {
-        hasSpecular_ = hasSpecular_ || scene.materialOf(scene.objects[o]).type != MaterialType::Diffuse;
-        RaySphere s;
-        if (exactSphere(scene, scene.objects[o], s)) {
-            objectSphere[o] = int(spheres_.size());
-            spheres_.push_back(s);
-            sphereObject_.push_back(int(o));
-        }
-    }
-    std::vector<char> skip(patches.size(), 0);
-    for (size_t i = 0; i < patches.size(); ++i) skip[i] = objectSphere[size_t(patches.object[i])] >= 0;
+SceneTracer::SceneTracer(const Scene& scene, const PatchSet& patches, std::shared_ptr<const RayScene> rays)
+    : scene_(scene), patches_(patches), rays_(rays ? std::move(rays) : buildRayScene(scene, patches)) {
+    ExactSpheres exact = findExactSpheres(scene);
+    spheres_ = std::move(exact.spheres);
+    sphereObject_ = std::move(exact.sphereObject);
+    PENUMBRA_CHECK_OP(rays_->patchCount(), ==, patches.size());
+    PENUMBRA_CHECK_OP(rays_->sphereCount(), ==, spheres_.size());
+    for (const SceneObject& o : scene.objects)
+        hasSpecular_ = hasSpecular_ || scene.materialOf(o).type != MaterialType::Diffuse;
     diagonal_ = patches.size() ? patchBounds(patches).diagonal().norm() : 1.0;
     // Offsets off surfaces: far above float rounding of the geometry, far below any feature.
     epsilon_ = 1e-6 * std::max(diagonal_, 1e-3);
-    rays_ = std::make_unique<RayScene>(patches, spheres_, skip);
 
     emitterPdf_.assign(patches.size(), 0);
     double total = 0;
@@ -113,7 +135,7 @@ SceneTracer::SceneTracer(const Scene& scene, const PatchSet& patches) : scene_(s
 }
 
 SurfaceHit SceneTracer::trace(const Vec3& origin, const Vec3& dir, double tMin) const {
-    const Hit h = rays_->intersect(origin, dir, tMin);
+    const Hit h = rays_->intersect(origin, dir, tMin, 1e30, RayView::Exact);
     SurfaceHit s;
     if (!h.found()) return s;
     s.found = true;
@@ -136,7 +158,7 @@ SurfaceHit SceneTracer::trace(const Vec3& origin, const Vec3& dir, double tMin) 
     return s;
 }
 
-bool SceneTracer::visible(const Vec3& a, const Vec3& b) const { return !rays_->occluded(a, b, 1e-7); }
+bool SceneTracer::visible(const Vec3& a, const Vec3& b) const { return !rays_->occluded(a, b, 1e-7, RayView::Exact); }
 
 LightSample SceneTracer::sampleLight(const Vec3& x, const Vec3& n, Rng& rng) const {
     const EmitterSample e = sampleEmitter(rng);

@@ -46,12 +46,22 @@ struct EmitterSample {
     int patch = -1;
 };
 
+// The one ray scene of a mesh: its patches, and exact spheres for the mirror and glass balls whose
+// transform keeps them spheres (in place of their patches, in the Exact view). Built once per mesh
+// and run, and shared by all that trace it: the form factors and the vertex gather (Patches view),
+// the specular transport, the photon pass and the integrators (Exact, through a SceneTracer).
+std::shared_ptr<const RayScene> buildRayScene(const Scene& scene, const PatchSet& patches);
+
 class SceneTracer {
 public:
-    SceneTracer(const Scene& scene, const PatchSet& patches);
+    // Over the mesh's ray scene `rays` (buildRayScene of the same scene and patches); with none,
+    // builds its own.
+    SceneTracer(const Scene& scene, const PatchSet& patches, std::shared_ptr<const RayScene> rays = nullptr);
 
     const Scene& scene() const { return scene_; }
     const PatchSet& patches() const { return patches_; }
+    const RayScene& rays() const { return *rays_; }
+    const std::shared_ptr<const RayScene>& sharedRays() const { return rays_; }
 
     // Nearest surface along origin + t dir (dir unit), t > tMin.
     SurfaceHit trace(const Vec3& origin, const Vec3& dir, double tMin = 0) const;
@@ -83,7 +93,7 @@ public:
 private:
     const Scene& scene_;
     const PatchSet& patches_;
-    std::unique_ptr<RayScene> rays_;
+    std::shared_ptr<const RayScene> rays_;
     std::vector<RaySphere> spheres_;
     std::vector<int> sphereObject_;
     std::vector<int> emitterPatch_;

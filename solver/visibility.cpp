@@ -4,11 +4,10 @@
 #include <pmmintrin.h>
 #include <xmmintrin.h>
 
-#include <atomic>
-#include <deque>
-#include <mutex>
 #include <string>
+#include <vector>
 
+#include "core/counters.h"
 #include "core/error.h"
 
 namespace penumbra {
@@ -19,33 +18,18 @@ void embreeError(void* user, RTCError code, const char* message) {
     auto* last = static_cast<std::string*>(user);
     if (last->empty()) *last = cat("Embree error ", int(code), ": ", message ? message : "(no message)");
 }
-// One counter per thread, each on its own cache line: an increment never waits for another core.
-struct alignas(64) RayCounter {
-    std::atomic<uint64_t> rays{0};
-};
-std::mutex g_countersMutex;
-std::deque<RayCounter> g_counters;  // a deque keeps addresses stable as threads register
 
-RayCounter& threadCounter() {
-    thread_local RayCounter* mine = [] {
-        std::lock_guard<std::mutex> lock(g_countersMutex);
-        return &g_counters.emplace_back();
-    }();
-    return *mine;
-}
+const Counter g_occlusionRays("rays.occlusion", "occlusion (shadow) rays traced, all stages");
+const Counter g_nearestRays("rays.nearest", "nearest-hit rays traced, all stages");
+const Counter g_scenesBuilt("rays.scenes_built", "ray-tracing scenes (Embree BVHs) built");
 
-inline void countRay() {
-    std::atomic<uint64_t>& c = threadCounter().rays;
-    c.store(c.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
-}
+// Geometry ids and the views (ray masks) that see them.
+constexpr unsigned kPatchGeometry = 0;   // every patch but those replaced by exact spheres
+constexpr unsigned kFacetGeometry = 1;   // the replaced patches: seen by the Patches view only
+constexpr unsigned kSphereGeometry = 2;  // the exact spheres: seen by the Exact view only
 }  // namespace
 
-uint64_t raysCast() {
-    std::lock_guard<std::mutex> lock(g_countersMutex);
-    uint64_t sum = 0;
-    for (const RayCounter& c : g_counters) sum += c.rays.load(std::memory_order_relaxed);
-    return sum;
-}
+uint64_t raysCast() { return g_occlusionRays.value() + g_nearestRays.value(); }
 
 void prepareTracingThread() {
     _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
@@ -56,44 +40,65 @@ struct RayScene::Impl {
     RTCDevice device = nullptr;
     RTCScene scene = nullptr;
     std::string error;
+    size_t patchTotal = 0, sphereTotal = 0;
+    std::vector<unsigned> facetPatch;  // facet geometry's primitive -> patch index
     void check(const char* during) {
         if (!error.empty()) throw Error(cat(error, " (while ", during, ")"));
+    }
+    // Quads of `patches` into a new geometry seen by `mask`; ids[k] is the patch of primitive k, and
+    // patches with collapse[i] != 0 become points, which no ray hits (primitive id == patch index).
+    void addQuads(const PatchSet& patches, const std::vector<unsigned>& ids, const std::vector<char>& collapse,
+                  unsigned id, unsigned mask) {
+        RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_QUAD);
+        const size_t n = ids.size();
+        auto* vb = static_cast<float*>(
+            rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), 4 * n));
+        auto* ib = static_cast<unsigned*>(
+            rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned), n));
+        for (size_t q = 0; q < n; ++q) {
+            const size_t i = ids[q];
+            const bool point = i < collapse.size() && collapse[i];
+            for (size_t k = 0; k < 4; ++k) {
+                const Vec3& p = patches.corners[i][point ? 0 : k];
+                vb[3 * (4 * q + k) + 0] = float(p.x());
+                vb[3 * (4 * q + k) + 1] = float(p.y());
+                vb[3 * (4 * q + k) + 2] = float(p.z());
+                ib[4 * q + k] = unsigned(4 * q + k);
+            }
+        }
+        rtcSetGeometryMask(geom, mask);
+        rtcCommitGeometry(geom);
+        rtcAttachGeometryByID(scene, geom, id);
+        rtcReleaseGeometry(geom);
     }
 };
 
 RayScene::RayScene(const PatchSet& patches) : RayScene(patches, {}, {}) {}
 
-RayScene::RayScene(const PatchSet& patches, const std::vector<RaySphere>& spheres, const std::vector<char>& skipPatch)
+RayScene::RayScene(const PatchSet& patches, const std::vector<RaySphere>& spheres, const std::vector<char>& replaced)
     : impl_(std::make_unique<Impl>()) {
     prepareTracingThread();
     impl_->device = rtcNewDevice("verbose=0");
     if (!impl_->device)
         throw Error(cat("Embree: cannot create a device (error ", int(rtcGetDeviceError(nullptr)), ")"));
     rtcSetDeviceErrorFunction(impl_->device, embreeError, &impl_->error);
+    if (!spheres.empty() && !rtcGetDeviceProperty(impl_->device, RTC_DEVICE_PROPERTY_RAY_MASK_SUPPORTED))
+        throw Error("Embree was built without ray masks, which the exact spheres of mirrors and glass need");
     impl_->scene = rtcNewScene(impl_->device);
     rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
     // Watertight edges: a ray through the seam of two touching patches must not slip between them
     // (the classic light leak along wall-floor and wall-ceiling joints).
     rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
-    RTCGeometry geom = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_QUAD);
-    const size_t n = patches.size();
-    auto* vb = static_cast<float*>(
-        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), 4 * n));
-    auto* ib = static_cast<unsigned*>(
-        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned), n));
-    for (size_t i = 0; i < n; ++i)
-        for (size_t k = 0; k < 4; ++k) {
-            // A skipped patch collapses to a point, which no ray hits; ids stay patch indices.
-            const bool skip = i < skipPatch.size() && skipPatch[i];
-            const Vec3& p = patches.corners[i][skip ? 0 : k];
-            vb[3 * (4 * i + k) + 0] = float(p.x());
-            vb[3 * (4 * i + k) + 1] = float(p.y());
-            vb[3 * (4 * i + k) + 2] = float(p.z());
-            ib[4 * i + k] = unsigned(4 * i + k);
-        }
-    rtcCommitGeometry(geom);
-    rtcAttachGeometryByID(impl_->scene, geom, 0);
-    rtcReleaseGeometry(geom);
+    const unsigned both = unsigned(RayView::Patches) | unsigned(RayView::Exact);
+    impl_->patchTotal = patches.size();
+    std::vector<unsigned> all(patches.size());
+    for (size_t i = 0; i < all.size(); ++i) all[i] = unsigned(i);
+    const std::vector<char> collapse = spheres.empty() ? std::vector<char>{} : replaced;
+    impl_->addQuads(patches, all, collapse, kPatchGeometry, both);
+    for (size_t i = 0; i < collapse.size() && i < patches.size(); ++i)
+        if (collapse[i]) impl_->facetPatch.push_back(unsigned(i));
+    if (!impl_->facetPatch.empty())
+        impl_->addQuads(patches, impl_->facetPatch, {}, kFacetGeometry, unsigned(RayView::Patches));
     if (!spheres.empty()) {
         RTCGeometry points = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
         auto* pb = static_cast<float*>(rtcSetNewGeometryBuffer(points, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
@@ -104,22 +109,27 @@ RayScene::RayScene(const PatchSet& patches, const std::vector<RaySphere>& sphere
             pb[4 * i + 2] = float(spheres[i].center.z());
             pb[4 * i + 3] = float(spheres[i].radius);
         }
+        rtcSetGeometryMask(points, unsigned(RayView::Exact));
         rtcCommitGeometry(points);
-        rtcAttachGeometryByID(impl_->scene, points, 1);
+        rtcAttachGeometryByID(impl_->scene, points, kSphereGeometry);
         rtcReleaseGeometry(points);
+        impl_->sphereTotal = spheres.size();
     }
     rtcCommitScene(impl_->scene);
     impl_->check("building the ray-tracing scene");
+    g_scenesBuilt.add();
 }
 
 void* RayScene::embreeScene() const { return impl_->scene; }
+size_t RayScene::patchCount() const { return impl_->patchTotal; }
+size_t RayScene::sphereCount() const { return impl_->sphereTotal; }
 
 RayScene::~RayScene() {
     if (impl_->scene) rtcReleaseScene(impl_->scene);
     if (impl_->device) rtcReleaseDevice(impl_->device);
 }
 
-bool RayScene::occluded(const Vec3& from, const Vec3& to, double trim) const {
+bool RayScene::occluded(const Vec3& from, const Vec3& to, double trim, RayView view) const {
     const Vec3 d = to - from;
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
@@ -133,15 +143,15 @@ bool RayScene::occluded(const Vec3& from, const Vec3& to, double trim) const {
     ray.tnear = float(trim);
     ray.tfar = float(1 - trim);
     ray.time = 0;
-    ray.mask = 0xFFFFFFFF;
+    ray.mask = unsigned(view);
     ray.id = 0;
     ray.flags = 0;
     rtcOccluded1(impl_->scene, &context, &ray);
-    countRay();
+    g_occlusionRays.add();
     return ray.tfar < 0;
 }
 
-Hit RayScene::intersect(const Vec3& origin, const Vec3& dir, double tMin, double tMax) const {
+Hit RayScene::intersect(const Vec3& origin, const Vec3& dir, double tMin, double tMax, RayView view) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRayHit rh;
@@ -154,17 +164,19 @@ Hit RayScene::intersect(const Vec3& origin, const Vec3& dir, double tMin, double
     rh.ray.tnear = float(tMin);
     rh.ray.tfar = float(std::min(tMax, 3e38));
     rh.ray.time = 0;
-    rh.ray.mask = 0xFFFFFFFF;
+    rh.ray.mask = unsigned(view);
     rh.ray.id = 0;
     rh.ray.flags = 0;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(impl_->scene, &context, &rh);
-    countRay();
+    g_nearestRays.add();
     Hit hit;
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
-    if (rh.hit.geomID == 0)
+    if (rh.hit.geomID == kPatchGeometry)
         hit.patch = int(rh.hit.primID);
+    else if (rh.hit.geomID == kFacetGeometry)
+        hit.patch = int(impl_->facetPatch[rh.hit.primID]);
     else
         hit.sphere = int(rh.hit.primID);
     hit.t = rh.ray.tfar;

@@ -1,7 +1,9 @@
-// Ray queries against the patch geometry: the only module that sees Embree. One scene of quads
-// (triangles repeat their last corner), committed once; primitive id == patch index. Both faces of
-// every patch occlude. Optionally, exact spheres (for mirrors and glass, whose facets would show)
-// replace the patches of their objects. Embree errors become Error exceptions with context.
+// Ray queries against the patch geometry: the only module that sees Embree. One scene per mesh,
+// committed once and shared by everything that traces it (form factors, specular transport, vertex
+// gather, photons, integrators): quads (triangles repeat their last corner), both faces occluding,
+// and optionally exact spheres standing in for the patches of mirror and glass balls, whose facets
+// would show in reflections and scatter caustics. Each query names the view it wants (RayView), told
+// apart by Embree's ray masks. Embree errors become Error exceptions with context.
 #pragma once
 
 #include <cstdint>
@@ -19,6 +21,11 @@ struct RaySphere {
     double radius = 0;
 };
 
+// What a query sees. Patches: every patch as meshed (the radiosity system's own geometry: form
+// factors, the vertex gather, the radiosity view). Exact: the exact spheres in place of the patches
+// they stand in for (light paths: specular transport, photons, the integrators).
+enum class RayView : unsigned { Patches = 1, Exact = 2 };
+
 struct Hit {
     int patch = -1;   // the patch hit, or -1
     int sphere = -1;  // the exact sphere hit (index into the constructor's list), or -1
@@ -31,17 +38,20 @@ struct Hit {
 class RayScene {
 public:
     explicit RayScene(const PatchSet& patches);
-    // Patches with skipPatch[i] != 0 are left out (they never hit); `spheres` are added.
-    RayScene(const PatchSet& patches, const std::vector<RaySphere>& spheres, const std::vector<char>& skipPatch);
+    // With `spheres`, seen by the Exact view in place of the patches with replaced[i] != 0.
+    RayScene(const PatchSet& patches, const std::vector<RaySphere>& spheres, const std::vector<char>& replaced);
     ~RayScene();
     RayScene(const RayScene&) = delete;
     RayScene& operator=(const RayScene&) = delete;
 
     // True if anything blocks the open segment from `from` to `to`, trimmed at both ends by
     // `trim` (a fraction of its length) so the endpoints' own patches do not count.
-    bool occluded(const Vec3& from, const Vec3& to, double trim = 1e-5) const;
+    bool occluded(const Vec3& from, const Vec3& to, double trim = 1e-5, RayView view = RayView::Patches) const;
     // Nearest hit along origin + t * dir, t in (tMin, tMax).
-    Hit intersect(const Vec3& origin, const Vec3& dir, double tMin = 0, double tMax = 1e30) const;
+    Hit intersect(const Vec3& origin, const Vec3& dir, double tMin = 0, double tMax = 1e30,
+                  RayView view = RayView::Patches) const;
+    size_t patchCount() const;
+    size_t sphereCount() const;
     // The committed Embree scene (an RTCScene), for the bench that measures Embree alone on the very
     // scene the solver traces; opaque here so that Embree's headers stay in this module.
     void* embreeScene() const;
@@ -54,8 +64,8 @@ private:
 // Sets the flush-to-zero and denormals-are-zero flags Embree wants in every tracing thread.
 void prepareTracingThread();
 
-// Rays cast through any RayScene of this process so far (occlusion and nearest-hit queries alike):
-// the bench's "rays cast" counter. Counted per thread, without contention between threads.
+// Rays cast through any RayScene of this process so far (occlusion and nearest-hit queries alike,
+// the counters rays.occlusion and rays.nearest): the bench's "rays cast".
 uint64_t raysCast();
 
 }  // namespace penumbra

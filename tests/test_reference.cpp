@@ -46,11 +46,11 @@ std::unique_ptr<Pair> renderAll(const std::string& file, int size, int gatherSpp
     p->camera.width = p->camera.height = size;
     SolveOptions options;
     p->solved = solveScene(p->scene, options);
-    const SolvedScene solved(p->scene, p->solved.patches, p->solved.corners, {}, {}, 1);
+    const SolvedScene solved(p->scene, p->solved.patches, p->solved.corners, {}, {}, 1, p->solved.rays);
     p->gather = solved.render(p->camera, gatherSpp, 1);
     p->radiosity =
         renderRadiosityView(p->scene, p->camera, p->solved.patches, *p->solved.rays, p->solved.corners, {4, 1});
-    p->tracer = std::make_unique<SceneTracer>(p->scene, p->solved.patches);
+    p->tracer = std::make_unique<SceneTracer>(p->scene, p->solved.patches, p->solved.rays);
     p->path = renderPath(*p->tracer, p->camera, pathSpp, 7);
     return p;
 }

@@ -5,8 +5,10 @@
 
 #include <cmath>
 
+#include "core/counters.h"
 #include "core/optics.h"
 #include "fixtures.h"
+#include "render/integrators.h"
 
 using namespace penumbra;
 
@@ -164,4 +166,53 @@ TEST(SpecularTransport, AllSolversAgreeWithAMirrorAndGlass) {
         for (size_t i = 0; i < results[0].size(); ++i)
             ASSERT_NEAR(results[s][i][0], results[0][i][0], 1e-6 * std::max(1.0, results[0][i][0]))
                 << "solver " << s << ", patch " << i;
+}
+
+TEST(RayScene, OneSceneServesThePatchesAndTheExactSpheres) {
+    // A glass ball of radius 0.25 at the cube's centre, seen along +x from x = 0.1: its patches (facets
+    // inscribed in the sphere) lie behind the exact surface, which a light path meets at 0.15.
+    const Scene scene = test::sceneFromJson(test::furnaceCube(
+        0.5, R"({"type": "dielectric", "ior": 1.5})", false,
+        R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [0.5, 0.5, 0.5], "radius": 0.25})"));
+    const PatchSet patches = meshScene(scene, {600, 0});
+    const std::shared_ptr<const RayScene> rays = buildRayScene(scene, patches);
+    ASSERT_EQ(rays->sphereCount(), 1u);
+    const Vec3 origin(0.1, 0.5, 0.5), dir(1, 0, 0);
+    const Hit exact = rays->intersect(origin, dir, 0, 1e30, RayView::Exact);
+    ASSERT_GE(exact.sphere, 0);
+    EXPECT_NEAR(exact.t, 0.15, 1e-6);
+    const Hit facet = rays->intersect(origin, dir, 0, 1e30, RayView::Patches);
+    ASSERT_GE(facet.patch, 0);
+    EXPECT_EQ(scene.objects[size_t(patches.object[size_t(facet.patch)])].name, "ball");
+    EXPECT_GT(facet.t, 0.15);
+    EXPECT_LT(facet.t, 0.15 + 0.02);
+    // The walls are in both views; the tracer over the shared scene sees the exact sphere.
+    EXPECT_EQ(rays->intersect(Vec3(0.1, 0.1, 0.5), dir, 0, 1e30, RayView::Exact).patch,
+              rays->intersect(Vec3(0.1, 0.1, 0.5), dir, 0, 1e30, RayView::Patches).patch);
+    const SceneTracer tracer(scene, patches, rays);
+    EXPECT_EQ(tracer.trace(origin, dir).patch, -1);
+    EXPECT_NEAR(tracer.trace(origin, dir).t, 0.15, 1e-6);
+}
+
+TEST(RayScene, OneSolveAndItsViewsBuildOneScenePerMesh) {
+    const Scene scene = test::sceneFromJson(test::furnaceCube(
+        0.5, R"({"type": "dielectric", "ior": 1.5})", false,
+        R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [0.5, 0.5, 0.5], "radius": 0.25})"));
+    auto built = [] { return counterValues().at("rays.scenes_built"); };
+    const uint64_t before = built();
+    SolveOptions o;
+    o.meshing.targetPatches = 150;
+    o.specular.raysPerPatch = 64;
+    const SolveResult r = solveScene(scene, o);
+    EXPECT_EQ(built() - before, 1u) << "form factors, specular transport and vertex gather share one";
+    Camera camera = scene.camera;
+    camera.width = camera.height = 8;
+    PhotonSettings photons;
+    photons.photons = 2000;
+    const RenderInputs in{scene, r.patches, r.corners, r.rays, {}, photons, 1};
+    for (const IntegratorEntry& e : integrators()) {
+        const uint64_t start = built();
+        e.render(in, {camera, camera}, 1);
+        EXPECT_EQ(built() - start, 0u) << e.name << " renders two views on the solve's ray scene";
+    }
 }

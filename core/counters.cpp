@@ -1,0 +1,94 @@
+#include "core/counters.h"
+
+#include <atomic>
+#include <deque>
+#include <mutex>
+#include <vector>
+
+#include "core/error.h"
+
+namespace penumbra {
+namespace {
+
+constexpr int kMaxCounters = 64;
+
+// One thread's slots, one per counter, on cache lines of their own: only the owning thread writes
+// them (a load and a store, no locked instruction); readers sum every thread's.
+struct alignas(64) ThreadSlots {
+    std::atomic<uint64_t> value[kMaxCounters] = {};
+};
+
+struct Registry {
+    std::mutex mutex;
+    std::vector<const Counter*> counters;
+    std::deque<ThreadSlots> threads;  // a deque keeps addresses stable as threads register
+};
+
+Registry& registry() {
+    static Registry* r = new Registry;  // never destroyed: counters may count during shutdown
+    return *r;
+}
+
+ThreadSlots& mySlots() {
+    thread_local ThreadSlots* mine = [] {
+        Registry& r = registry();
+        std::lock_guard<std::mutex> lock(r.mutex);
+        return &r.threads.emplace_back();
+    }();
+    return *mine;
+}
+
+}  // namespace
+
+Counter::Counter(const char* name, const char* description) : name_(name), description_(description) {
+    Registry& r = registry();
+    std::lock_guard<std::mutex> lock(r.mutex);
+    PENUMBRA_CHECK(r.counters.size() < size_t(kMaxCounters));
+    for (const Counter* c : r.counters) PENUMBRA_CHECK(std::string(c->name_) != name);
+    id_ = int(r.counters.size());
+    r.counters.push_back(this);
+}
+
+void Counter::add(uint64_t n) const {
+    std::atomic<uint64_t>& v = mySlots().value[id_];
+    v.store(v.load(std::memory_order_relaxed) + n, std::memory_order_relaxed);
+}
+
+uint64_t Counter::value() const {
+    Registry& r = registry();
+    std::lock_guard<std::mutex> lock(r.mutex);
+    uint64_t sum = 0;
+    for (const ThreadSlots& t : r.threads) sum += t.value[id_].load(std::memory_order_relaxed);
+    return sum;
+}
+
+CounterValues counterValues() {
+    Registry& r = registry();
+    std::lock_guard<std::mutex> lock(r.mutex);
+    CounterValues out;
+    for (const Counter* c : r.counters) {
+        uint64_t sum = 0;
+        for (const ThreadSlots& t : r.threads) sum += t.value[c->id_].load(std::memory_order_relaxed);
+        out[c->name()] = sum;
+    }
+    return out;
+}
+
+CounterValues countersSince(const CounterValues& before) {
+    CounterValues now = counterValues();
+    for (auto& [name, value] : now) {
+        const auto then = before.find(name);
+        if (then != before.end()) value -= then->second;
+    }
+    return now;
+}
+
+std::string counterDescription(const std::string& name) {
+    Registry& r = registry();
+    std::lock_guard<std::mutex> lock(r.mutex);
+    for (const Counter* c : r.counters)
+        if (name == c->name()) return c->description();
+    return {};
+}
+
+}  // namespace penumbra
