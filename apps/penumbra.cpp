@@ -8,6 +8,7 @@
 #include <tuple>
 
 #include "bench/trade.h"
+#include "core/counters.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "core/parallel.h"
@@ -226,9 +227,14 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     }
 
     Timer timer;
+    const CounterValues before = counterValues();
     const std::vector<Image> images = entry.render(
         RenderInputs{scene, stored.patches, stored.corners, nullptr, c.gather, c.photons, common.seed}, cameras, spp);
     const double seconds = timer.seconds();
+    std::string counted;
+    for (const auto& [name, value] : countersSince(before))
+        if (value > 0) counted += cat(counted.empty() ? "" : ", ", name, " ", value);
+    logInfo("render counters: ", counted);
 
     // Everything is rendered before the first file is written.
     if (!out.parent_path().empty()) ensureDirectory(out.parent_path().string());

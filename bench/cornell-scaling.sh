@@ -18,8 +18,8 @@ for n in "${counts[@]}"; do
 import json, sys
 r = json.load(open(sys.argv[1]))["solver"]
 c = r["counters"]
-print(f"| {sys.argv[2]} | {r['patches']} | {r['seconds']['form_factors']:.2f} | {c['visibility_rays']:,} | "
-      f"{c['kernel_evaluations']:,} | {r['seconds']['solve']:.3f} | {r['iterations']} | {r['matrix_mib']:.0f} | {r['peak_memory_mib']:.0f} |")
+print(f"| {sys.argv[2]} | {r['patches']} | {r['seconds']['form_factors']:.2f} | {c['form_factors.visibility_rays']:,} | "
+      f"{c['form_factors.kernel_evaluations']:,} | {r['seconds']['solve']:.3f} | {r['iterations']} | {r['matrix_mib']:.0f} | {r['peak_memory_mib']:.0f} |")
 PY
   rm -rf "$out"
 done

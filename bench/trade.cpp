@@ -312,11 +312,10 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
     o.solver = s.solver;
     o.refine.tolerance = s.refine;
     if (s.refine > 0) o.refine.maxPatches = s.refineBudget;
-    const uint64_t rays0 = raysCast();
     resetPeakMemory();
     SolveResult r = quietly([&] { return solveScene(scene_, o); });
     const double peak = peakMemoryBytes() / (1 << 20);
-    const uint64_t rays = raysCast() - rays0;
+    const uint64_t rays = r.counters.at("rays.occlusion") + r.counters.at("rays.nearest");
     auto keep = [&](double tolerance, const RadiositySolution& solution, double solveSeconds) {
         auto rec = std::make_unique<SolveRecord>();
         rec->patches = r.patches;
@@ -335,7 +334,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
         rec->links = r.hierarchy.links;
         rec->storageMiB = r.solverName == "hierarchical" ? r.hierarchy.bytes / (1 << 20) : rec->matrixMiB;
         rec->rayCount = rays;
-        rec->formFactorRays = r.F.stats.rays;
+        rec->formFactorRays = r.counters.at("form_factors.visibility_rays");
         rec->objectMean = objectMeans(scene_, rec->patches, rec->B);
         solves_[std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.specularRays, tolerance, s.refine,
                                 s.refineBudget, s.solver)] = std::move(rec);

@@ -72,7 +72,6 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
     report["totals"] = {{"emitted_power_w", rgbJson(r.power.totalEmitted)},
                         {"absorbed_power_w", rgbJson(r.power.totalAbsorbed)},
                         {"escaped_power_w", rgbJson(r.power.escaped)}};
-    const FormFactorStats& ff = r.F.stats;
     report["solver"] = {
         {"name", r.solverName},
         {"patches", r.patches.size()},
@@ -86,21 +85,19 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
           {"specular_transport", r.secondsSpecular},
           {"solve", r.secondsSolve},
           {"vertex_radiosity", r.secondsVertices}}},
-        {"counters",
-         {{"facing_pairs", ff.pairs},
-          {"occluded_pairs", ff.occluded},
-          {"partly_visible_pairs", ff.partiallyVisible},
-          {"visibility_rays", ff.rays},
-          {"kernel_evaluations", ff.kernelEvaluations},
-          {"back_face_transfers", r.F.backTransfers.size()},
-          {"specular_rays", r.system.transport.rays},
-          {"specular_transfers", r.system.transport.outTarget.size()},
+        {"transfers",
+         {{"back_face", r.F.backTransfers.size()},
+          {"specular", r.system.transport.outTarget.size()},
           {"specular_unresolved_share", r.system.transport.unresolvedShare}}},
         {"form_factor_row_sum", {{"min", r.rowSumMin}, {"max", r.rowSumMax}}},
         {"matrix_mib", double(formFactorMatrixBytes(r.F.size())) / (1 << 20)},
         {"peak_memory_mib", peakMemory / (1 << 20)},
     };
     if (!r.solverReason.empty()) report["solver"]["chosen_because"] = r.solverReason;
+    // Every named counter (core/counters.h), as the solve changed it: the one place they are read.
+    Json& counters = report["solver"]["counters"];
+    counters = Json::object();
+    for (const auto& [name, value] : r.counters) counters[name] = value;
     if (r.solverName == "hierarchical") {
         const HierarchyStats& h = r.hierarchy;
         report["solver"]["hierarchy"] = {
@@ -109,8 +106,6 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
             {"leaves", h.leaves},
             {"links", h.links},
             {"partly_visible_links", h.partlyVisibleLinks},
-            {"visibility_rays", h.rays},
-            {"kernel_evaluations", h.kernelEvaluations},
             {"rounds", h.rounds},
             {"storage_mib", h.bytes / (1 << 20)},
             {"matrix_of_as_many_patches_mib", double(formFactorMatrixBytes(h.leaves)) / (1 << 20)}};

@@ -1,11 +1,15 @@
 #include "render/film.h"
 
+#include "core/counters.h"
 #include "core/parallel.h"
 #include "core/progress.h"
 #include "render/camera.h"
 #include "solver/visibility.h"
 
 namespace penumbra {
+namespace {
+const Counter g_cameraSamples("render.camera_samples", "camera rays (samples of pixels), all integrators");
+}  // namespace
 
 Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
                    const RadianceFn& radiance) {
@@ -28,6 +32,7 @@ Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, con
                 }
                 image.set(x, int(y), sum / spp);
             }
+            g_cameraSamples.add(uint64_t(camera.width) * uint64_t(spp));
             progress.update();
         }
     });

@@ -2,11 +2,15 @@
 
 #include <memory>
 
+#include "core/counters.h"
 #include "core/log.h"
 #include "core/optics.h"
 #include "render/radiosity_view.h"
 
 namespace penumbra {
+namespace {
+const Counter g_gatherRays("render.gather_rays", "final gather: cosine rays that read the solved radiosity");
+}  // namespace
 
 FinalGather::FinalGather(const SceneTracer& tracer, const std::vector<std::array<Rgb, 4>>& cornerRadiosity,
                          const PhotonMap* caustics, const GatherSettings& settings)
@@ -69,6 +73,7 @@ Rgb FinalGather::directIrradiance(const SurfaceHit& x, Rng& rng, int samples, in
 
 Rgb FinalGather::indirectIrradiance(const SurfaceHit& x, Rng& rng, int rays, int lightSamples, int level) const {
     const Vec3 from = x.point + tracer_.epsilon() * x.normal;
+    g_gatherRays.add(uint64_t(rays));
     Rgb sum = Rgb::Zero();
     for (int r = 0; r < rays; ++r) {
         const Vec3 d = cosineDirection(x.normal, rng);

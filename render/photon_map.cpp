@@ -2,6 +2,7 @@
 
 #include <nanoflann.hpp>
 
+#include "core/counters.h"
 #include "core/log.h"
 #include "core/optics.h"
 #include "core/parallel.h"
@@ -10,6 +11,10 @@
 
 namespace penumbra {
 namespace {
+
+const Counter g_photonsEmitted("photons.emitted", "caustic photons emitted from the lights");
+const Counter g_photonsStored("photons.stored",
+                              "caustic photons stored (landed on a diffuse surface after a specular bounce)");
 
 struct Photon {
     Eigen::Vector3f position;
@@ -87,6 +92,8 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
     }
     stats_.emitted = n;
     stats_.stored = int64_t(impl_->cloud.points.size());
+    g_photonsEmitted.add(uint64_t(stats_.emitted));
+    g_photonsStored.add(uint64_t(stats_.stored));
     impl_->tree = std::make_unique<KdTree<Photon>>(3, impl_->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
     if (settings.precompute > 0 && !impl_->cloud.points.empty()) {
         const size_t stride = size_t(settings.precompute), count = (impl_->cloud.points.size() + stride - 1) / stride;

@@ -140,6 +140,7 @@ PatchSet planarRoots(const PatchSet& p) {
 
 // The hierarchy: roots meshed coarsely, elements no finer than the patches `meshing` asks for.
 void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveResult& r) {
+    const CounterValues before = counterValues();
     Timer meshTimer;
     MeshingOptions rootMeshing;
     // Roots no finer than the elements asked for.
@@ -179,7 +180,7 @@ void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveRes
     logInfo("hierarchical: ", h.stats.leaves, " leaves (", h.stats.elements, " elements over ", h.stats.roots,
             " roots), ", h.stats.links, " links, ", h.stats.bytes / (1 << 20),
             " MiB (the matrix of as many patches: ", double(formFactorMatrixBytes(h.stats.leaves)) / (1 << 20),
-            " MiB), ", h.stats.rays, " rays");
+            " MiB), ", countersSince(before)["hierarchy.visibility_rays"], " visibility rays");
     // The equation at every vertex costs vertices x leaves: past the matrix's reach, the mean.
     if (options.gatherVertices)
         logInfo("hierarchical: displayed vertex radiosity is the mean of the patches around each vertex");
@@ -228,7 +229,9 @@ std::vector<std::string> allSolverNames() {
     return names;
 }
 
-SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer) {
+namespace {
+
+SolveResult solveUncounted(const Scene& scene, const SolveOptions& options, const StepObserver& observer) {
     SolveResult r;
     r.options = options;
     const auto names = allSolverNames();
@@ -302,6 +305,15 @@ SolveResult solveScene(const Scene& scene, const SolveOptions& options, const St
             {r.patches.size(), choice.byGradient, choice.byShadow, made,
              r.secondsMeshing + r.secondsFormFactors + r.secondsSpecular + r.secondsSolve + r.secondsVertices});
     }
+    return r;
+}
+
+}  // namespace
+
+SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer) {
+    const CounterValues before = counterValues();
+    SolveResult r = solveUncounted(scene, options, observer);
+    r.counters = countersSince(before);
     return r;
 }
 

@@ -5,6 +5,7 @@
 #include <memory>
 #include <string>
 
+#include "core/counters.h"
 #include "mesh/patches.h"
 #include "mesh/scene.h"
 #include "solver/radiosity/form_factors.h"
@@ -51,6 +52,7 @@ struct SolveResult {
     double secondsMeshing = 0, secondsFormFactors = 0, secondsSpecular = 0, secondsSolve = 0, secondsVertices = 0;
     double rowSumMin = 0, rowSumMax = 0;  // front-face row sums (closed scenes: 1 within error)
     std::vector<RefineRound> refinement;  // empty without --refine; else the first solve, then each round
+    CounterValues counters;               // what this solve did: every named counter's change over it
 };
 
 SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer = {});

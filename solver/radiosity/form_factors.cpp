@@ -1,8 +1,8 @@
 #include "solver/radiosity/form_factors.h"
 
-#include <atomic>
 #include <mutex>
 
+#include "core/counters.h"
 #include "core/log.h"
 #include "core/parallel.h"
 #include "core/progress.h"
@@ -11,6 +11,12 @@
 
 namespace penumbra {
 namespace {
+
+const Counter g_facingPairs("form_factors.facing_pairs", "patch pairs that face each other (front or back)");
+const Counter g_occludedPairs("form_factors.occluded_pairs", "facing pairs whose visibility rays all were blocked");
+const Counter g_partlyVisible("form_factors.partly_visible_pairs", "facing pairs whose visibility rays disagreed");
+const Counter g_visibilityRays("form_factors.visibility_rays", "visibility rays between patch pairs");
+const Counter g_kernelEvaluations("form_factors.kernel_evaluations", "point-to-polygon kernel evaluations");
 
 // A point of patch i in stratum k of a side x side grid, jittered. Points keep a margin of 1e-3 of
 // the patch from its edges: a segment from a point exactly on an edge can graze along a seam (the
@@ -127,7 +133,7 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
     Timer timer;
     const size_t n = patches.size();
     FormFactorMatrix F(n);
-    std::atomic<uint64_t> pairs{0}, evaluations{0}, rays{0}, partial{0}, occluded{0};
+    const CounterValues before = counterValues();
     std::mutex backMutex;
     Progress progress("form factors", int64_t(n) * int64_t(n - 1) / 2);
     parallelFor(int64_t(n), [&](int64_t begin, int64_t end) {
@@ -189,11 +195,11 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
             }
             progress.update(int64_t(n - i - 1));
         }
-        pairs += myPairs;
-        evaluations += myEvaluations;
-        rays += myRays;
-        partial += myPartial;
-        occluded += myOccluded;
+        g_facingPairs.add(myPairs);
+        g_kernelEvaluations.add(myEvaluations);
+        g_visibilityRays.add(myRays);
+        g_partlyVisible.add(myPartial);
+        g_occludedPairs.add(myOccluded);
         std::lock_guard<std::mutex> lock(backMutex);
         F.backTransfers.insert(F.backTransfers.end(), myBack.begin(), myBack.end());
     });
@@ -202,10 +208,11 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
     std::sort(F.backTransfers.begin(), F.backTransfers.end(), [](const BackTransfer& a, const BackTransfer& b) {
         return a.from != b.from ? a.from < b.from : a.to < b.to;
     });
-    F.stats = {pairs, evaluations, rays, partial, occluded, timer.seconds()};
-    logInfo("form factors: ", n, " patches, ", F.stats.pairs, " facing pairs (", F.stats.occluded, " occluded, ",
-            F.stats.partiallyVisible, " partly visible), ", F.stats.rays, " rays, ", F.stats.kernelEvaluations,
-            " kernel evaluations in ", F.stats.seconds, " s");
+    CounterValues did = countersSince(before);
+    logInfo("form factors: ", n, " patches, ", did["form_factors.facing_pairs"], " facing pairs (",
+            did["form_factors.occluded_pairs"], " occluded, ", did["form_factors.partly_visible_pairs"],
+            " partly visible), ", did["form_factors.visibility_rays"], " rays, ",
+            did["form_factors.kernel_evaluations"], " kernel evaluations in ", timer.seconds(), " s");
     return F;
 }
 

@@ -27,15 +27,6 @@ struct BackTransfer {
     double areaFactor;  // A_from * F(from -> back of to), m^2
 };
 
-struct FormFactorStats {
-    uint64_t pairs = 0;  // pairs that face each other (front or back)
-    uint64_t kernelEvaluations = 0;
-    uint64_t rays = 0;
-    uint64_t partiallyVisible = 0;
-    uint64_t occluded = 0;
-    double seconds = 0;
-};
-
 class FormFactorMatrix {
 public:
     using Dense = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
@@ -50,7 +41,6 @@ public:
     const Dense& dense() const { return values_; }
 
     std::vector<BackTransfer> backTransfers;
-    FormFactorStats stats;
 
 private:
     Dense values_;

@@ -1,9 +1,9 @@
 #include "solver/radiosity/hierarchy.h"
 
 #include <algorithm>
-#include <atomic>
 #include <numeric>
 
+#include "core/counters.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "core/parallel.h"
@@ -14,6 +14,9 @@
 
 namespace penumbra {
 namespace {
+
+const Counter g_linkRays("hierarchy.visibility_rays", "visibility rays between linked elements");
+const Counter g_linkEvaluations("hierarchy.kernel_evaluations", "kernel evaluations of the links' form factors");
 
 double brightness(const Rgb& b) { return b.sum() / 3; }
 
@@ -142,7 +145,6 @@ private:
 
     // Rays for the links in `list` from `begin` on, in parallel (the elements do not change meanwhile).
     void testVisibility(Links& list, size_t begin) {
-        std::atomic<uint64_t> rays{0};
         parallelFor(
             int64_t(list.size() - begin),
             [&](int64_t b, int64_t e) {
@@ -158,10 +160,9 @@ private:
                     list.visible[l] = float(v.fraction);
                     list.partly[l] = v.fraction > 0 && v.fraction < 1;
                 }
-                rays += mine;
+                g_linkRays.add(mine);
             },
             64);
-        stats_.rays += rays;
     }
 
     // Takes links, tests them, and keeps or splits each by the oracle until every one is kept;
@@ -213,7 +214,6 @@ private:
 
     // The kept links' form factors: the analytic kernel over the smaller element, times visibility.
     void formFactors() {
-        std::atomic<uint64_t> evaluations{0};
         const size_t n = links_.size();
         parallelFor(
             int64_t(n),
@@ -228,10 +228,9 @@ private:
                         unoccludedAreaFactors(nodes_, rSmaller ? r : s, rSmaller ? s : r, settings_.cubature, &mine);
                     links_.F[l] = float(double(links_.visible[l]) * g.front / nodes_.area[r]);
                 }
-                evaluations += mine;
+                g_linkEvaluations.add(mine);
             },
             256);
-        stats_.kernelEvaluations += evaluations;
         // Receivers together, in element order: the gather walks them so.
         std::vector<size_t> order(links_.size());
         std::iota(order.begin(), order.end(), 0);

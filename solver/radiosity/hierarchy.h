@@ -33,7 +33,7 @@ struct HierarchySettings {
 
 struct HierarchyStats {
     size_t roots = 0, elements = 0, leaves = 0, links = 0;
-    uint64_t rays = 0, partlyVisibleLinks = 0, kernelEvaluations = 0;
+    uint64_t partlyVisibleLinks = 0;
     int rounds = 0;
     double bytes = 0;  // elements and links as stored
     double secondsLinks = 0, secondsSolve = 0;

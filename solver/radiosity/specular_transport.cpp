@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <map>
 
+#include "core/counters.h"
 #include "core/log.h"
 #include "core/optics.h"
 #include "core/parallel.h"
@@ -11,6 +12,8 @@
 
 namespace penumbra {
 namespace {
+
+const Counter g_transportRays("specular.rays", "rays of the specular transport (first rays and bounces)");
 
 struct Fate {
     int group;   // which specular object the ray met first (index into the row's objects)
@@ -128,11 +131,13 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
     out.lossStart.assign(n + 1, 0);
     std::vector<size_t> inCount(n + 1, 0);
     double area = 0;
+    int64_t rays = 0;
     for (size_t i = 0; i < n; ++i) {
         out.outStart[i + 1] = out.outStart[i] + rows[i].delivered.size();
         out.lossStart[i + 1] = out.lossStart[i] + rows[i].lost.size();
         for (const auto& [j, s] : rows[i].delivered) ++inCount[size_t(j) + 1];
-        out.rays += rows[i].rays;
+        g_transportRays.add(uint64_t(rows[i].rays));
+        rays += rows[i].rays;
         out.unresolvedShare += patches.area[i] * rows[i].unresolved;
         area += patches.area[i];
     }
@@ -160,7 +165,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
             ++fill[j];
         }
     out.seconds = timer.seconds();
-    logInfo("specular transport: ", groups, " mirror/glass objects, ", out.rays, " rays, ", out.outTarget.size(),
+    logInfo("specular transport: ", groups, " mirror/glass objects, ", rays, " rays, ", out.outTarget.size(),
             " transfers in ", out.seconds, " s");
     return out;
 }

@@ -40,7 +40,6 @@ struct SpecularTransport {
     std::vector<int> lossObject;
     std::vector<Rgb> lossShare;
 
-    int64_t rays = 0;            // rays traced
     double unresolvedShare = 0;  // area-weighted share F(i, o) no ray found (counted absorbed by o)
     double seconds = 0;
 
