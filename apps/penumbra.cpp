@@ -141,8 +141,7 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
     // Everything is computed before the first byte is written; each file appears whole.
     ensureDirectory(s.out);
     const std::filesystem::path dir(s.out);
-    writeSolution((dir / "solution.bin").string(),
-                  {scene.fingerprint, r.patches, r.solution.B, r.solution.display, r.corners});
+    writeSolution((dir / "solution.bin").string(), r);
     writeFileAtomic((dir / "convergence.csv").string(), convergenceCsv(r));
     if (scene.hasCamera) {
         const Image view =
@@ -179,9 +178,9 @@ Camera cameraFor(const Scene& scene, const RenderCli& c) {
     return camera;
 }
 
-StoredSolution solutionFor(const Scene& scene, const RenderCli& c, SolveCli& s, const CommonOptions& common) {
+SolveResult solutionFor(const Scene& scene, const RenderCli& c, SolveCli& s, const CommonOptions& common) {
     if (!c.solution.empty()) {
-        StoredSolution stored = readSolution((std::filesystem::path(c.solution) / "solution.bin").string());
+        SolveResult stored = readSolution((std::filesystem::path(c.solution) / "solution.bin").string());
         if (stored.sceneFingerprint != scene.fingerprint)
             throw Error(cat(c.solution, ": this solution was solved for another version of ", c.scene,
                             " (or another scene): solve again"));
@@ -191,7 +190,8 @@ StoredSolution solutionFor(const Scene& scene, const RenderCli& c, SolveCli& s, 
     }
     logInfo("no --solution given: solving first");
     SolveResult r = solveScene(scene, s.resolved(common));
-    return {scene.fingerprint, std::move(r.patches), r.solution.B, r.solution.display, std::move(r.corners)};
+    r.F = FormFactorMatrix();  // views need the radiosity, not the matrix
+    return r;
 }
 
 int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
@@ -205,7 +205,7 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     const int spp = c.spp > 0 ? c.spp : entry.defaultSpp;
 
     // The geometry: the solve's patches, or (path tracer) the scene meshed as a solve would mesh it.
-    StoredSolution stored;
+    SolveResult stored;
     if (!entry.needsSolution) {
         if (!c.solution.empty())
             logInfo("the ", integrator, " integrator needs no solution: --solution ", c.solution, " is not read");
@@ -228,8 +228,9 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
 
     Timer timer;
     const CounterValues before = counterValues();
-    const std::vector<Image> images = entry.render(
-        RenderInputs{scene, stored.patches, stored.corners, nullptr, c.gather, c.photons, common.seed}, cameras, spp);
+    const std::vector<Image> images =
+        entry.render(RenderInputs{scene, stored.patches, stored.corners, stored.rays, c.gather, c.photons, common.seed},
+                     cameras, spp);
     const double seconds = timer.seconds();
     std::string counted;
     for (const auto& [name, value] : countersSince(before))
@@ -260,7 +261,7 @@ int runView(RenderCli& c, SolveCli& s, ViewerOptions& options, const CommonOptio
     if (!options.screenshot.empty() && std::filesystem::path(options.screenshot).extension() != ".png")
         throw Error(cat("--screenshot ", options.screenshot, ": expected a .png file name"));
     requireDisplay();  // before any solving
-    const StoredSolution stored = solutionFor(scene, c, s, common);
+    const SolveResult stored = solutionFor(scene, c, s, common);
     if (!c.solution.empty()) {
         std::ifstream report((std::filesystem::path(c.solution) / "report.json").string());
         std::stringstream text;
@@ -281,7 +282,7 @@ int runExport(const std::string& dir, const std::string& out, std::string format
     if (format != "gltf" && format != "ply")
         throw Error(cat("--format: expected gltf or ply (or an --out ending in .glb, .gltf or .ply), got '",
                         format.empty() ? ext : format, "'"));
-    const StoredSolution stored = readSolution((std::filesystem::path(dir) / "solution.bin").string());
+    const SolveResult stored = readSolution((std::filesystem::path(dir) / "solution.bin").string());
     const ExportMesh mesh = exportMesh(stored.patches, stored.corners);
     const double exposure = exportExposure(mesh, stops);
     const std::string parent = std::filesystem::path(out).parent_path().string();

@@ -21,10 +21,10 @@
 #include "io/image_io.h"
 #include "render/final_gather.h"
 #include "render/image_metrics.h"
+#include "render/integrators.h"
 #include "render/path_tracer.h"
 #include "render/photon_map.h"
 #include "render/radiosity_view.h"
-#include "solver/radiosity/vertex_radiosity.h"
 #include "solver/solve.h"
 #include "solver/tracer.h"
 
@@ -41,7 +41,7 @@ struct Baseline {
     int64_t photons = PhotonSettings{}.photons;
     int photonK = PhotonSettings{}.nearest;
     int gatherRays = GatherSettings{}.gatherRays;
-    int spp = 16, radiositySpp = 4;  // render's defaults
+    int spp = 0;  // 0: the integrator's default (its registry entry)
 };
 
 Baseline baselineFor(bool quick) {
@@ -65,7 +65,7 @@ Setting baseSetting(const Baseline& b, const std::string& method, const std::str
             b.photons,
             b.photonK,
             b.gatherRays,
-            method == "radiosity" ? b.radiositySpp : b.spp};
+            b.spp > 0 && method == "final-gather" ? b.spp : findIntegrator(method).defaultSpp};
 }
 
 // Adds one run per value and method: the baseline with one setting changed by `set`.
@@ -171,15 +171,15 @@ std::string defaultCacheDir() {
     return (std::filesystem::temp_directory_path() / "penumbra-cache").string();
 }
 
-// A solve and what the views of it need, kept for the runs that share it (without its matrix).
+// A solve, kept for the runs that share it: the solution as solveScene made it (without its matrix,
+// which only the solves to other tolerances read), and what the bench measured of it.
 struct SolveRecord {
-    PatchSet patches;
-    std::vector<Rgb> B, display;
-    std::vector<std::array<Rgb, 4>> corners;
-    std::shared_ptr<const RayScene> rays;
-    double meshing = 0, formFactors = 0, specular = 0, solve = 0, peakMiB = 0, matrixMiB = 0, storageMiB = 0;
-    uint64_t rayCount = 0, formFactorRays = 0, links = 0;
+    SolveResult solved;
+    double solveSeconds = 0;  // the iterations and the display's vertex radiosity
+    double peakMiB = 0, matrixMiB = 0, storageMiB = 0;
+    uint64_t rayCount = 0;        // rays of the solve, every stage
     std::vector<Rgb> objectMean;  // area-weighted mean B per object
+    const PatchSet& patches() const { return solved.patches; }
 };
 
 // Area of each scene object, m^2, as meshed.
@@ -316,37 +316,33 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
     SolveResult r = quietly([&] { return solveScene(scene_, o); });
     const double peak = peakMemoryBytes() / (1 << 20);
     const uint64_t rays = r.counters.at("rays.occlusion") + r.counters.at("rays.nearest");
-    auto keep = [&](double tolerance, const RadiositySolution& solution, double solveSeconds) {
+    const double matrixMiB = double(formFactorMatrixBytes(r.F.size())) / (1 << 20);
+    auto keep = [&](double tolerance) {
         auto rec = std::make_unique<SolveRecord>();
-        rec->patches = r.patches;
-        rec->B = solution.B;
-        rec->display = solution.display;
-        Timer vertexTimer;
-        rec->corners = &solution == &r.solution ? r.corners : quietly([&] {
-            return gatherCorners(r.patches, r.system, r.F, solution.display, *r.rays);
-        });
-        const double vertexSeconds = &solution == &r.solution ? r.secondsVertices : vertexTimer.seconds();
-        rec->rays = r.rays;
-        rec->meshing = r.secondsMeshing, rec->formFactors = r.secondsFormFactors, rec->specular = r.secondsSpecular;
-        rec->solve = solveSeconds + vertexSeconds;  // the display's vertex radiosity counts with the solve
+        FormFactorMatrix F = std::move(r.F);  // the copy goes without the matrix
+        rec->solved = r;
+        r.F = std::move(F);
+        rec->solveSeconds = r.secondsSolve + r.secondsVertices;  // the display's vertex radiosity counts too
         rec->peakMiB = peak;
-        rec->matrixMiB = double(formFactorMatrixBytes(r.F.size())) / (1 << 20);
-        rec->links = r.hierarchy.links;
-        rec->storageMiB = r.solverName == "hierarchical" ? r.hierarchy.bytes / (1 << 20) : rec->matrixMiB;
+        rec->matrixMiB = matrixMiB;
+        rec->storageMiB = r.solverName == "hierarchical" ? r.hierarchy.bytes / (1 << 20) : matrixMiB;
         rec->rayCount = rays;
-        rec->formFactorRays = r.counters.at("form_factors.visibility_rays");
-        rec->objectMean = objectMeans(scene_, rec->patches, rec->B);
+        rec->objectMean = objectMeans(scene_, r.patches, r.solution.B);
         solves_[std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.specularRays, tolerance, s.refine,
                                 s.refineBudget, s.solver)] = std::move(rec);
     };
-    keep(tolerances.front(), r.solution, r.secondsSolve);
+    keep(tolerances.front());
     for (size_t k = 1; k < tolerances.size(); ++k) {
-        const auto solver = makeSolver(r.solverName);
-        SolverSettings settings = o.solverSettings;
-        settings.tolerance = tolerances[k];
-        Timer timer;
-        const RadiositySolution solution = quietly([&] { return solver->solve(r.F, r.system, settings); });
-        keep(tolerances[k], solution, timer.seconds());
+        // The same matrix to another tolerance: the tail of the solve again, timed afresh.
+        SolveOptions again = o;
+        again.solver = r.solverName;
+        again.solverSettings.tolerance = tolerances[k];
+        r.secondsSolve = r.secondsVertices = 0;
+        quietly([&] {
+            solveBuiltMatrix(again, {}, r);
+            return 0;
+        });
+        keep(tolerances[k]);
     }
     return *solves_.at(key);
 }
@@ -368,18 +364,20 @@ Row Bench::runOne(const Setting& s) {
         row.peakMiB = peakMemoryBytes() / (1 << 20);
     } else {
         const SolveRecord& rec = solveFor(s);
-        row.patchesMade = int(rec.patches.size());
-        row.meshing = rec.meshing, row.formFactors = rec.formFactors, row.specular = rec.specular,
-        row.solve = rec.solve;
+        const SolveResult& solved = rec.solved;
+        row.patchesMade = int(solved.patches.size());
+        row.meshing = solved.secondsMeshing, row.formFactors = solved.secondsFormFactors,
+        row.specular = solved.secondsSpecular, row.solve = rec.solveSeconds;
         row.matrixMiB = rec.matrixMiB;
-        row.links = rec.links;
+        row.links = solved.hierarchy.links;
         row.storageMiB = rec.storageMiB;
         const uint64_t rays0 = raysCast();
         resetPeakMemory();
         if (s.method == "radiosity") {
             Timer timer;
             image = quietly([&] {
-                return renderRadiosityView(scene_, cam, rec.patches, *rec.rays, rec.corners, {s.spp, options_.seed});
+                return renderRadiosityView(scene_, cam, solved.patches, *solved.rays, solved.corners,
+                                           {s.spp, options_.seed});
             });
             row.render = timer.seconds();
         } else {
@@ -389,14 +387,14 @@ Row Bench::runOne(const Setting& s) {
             photons.photons = s.photons;
             photons.nearest = s.photonK;
             Timer setup;
-            const auto solved = quietly([&] {
-                return std::make_unique<SolvedScene>(scene_, rec.patches, rec.corners, gather, photons, options_.seed,
-                                                     rec.rays);
+            const auto views = quietly([&] {
+                return std::make_unique<SolvedScene>(scene_, solved.patches, solved.corners, gather, photons,
+                                                     options_.seed, solved.rays);
             });
             row.photons = setup.seconds();
             const uint64_t rays1 = raysCast();
             Timer timer;
-            image = quietly([&] { return solved->render(cam, s.spp, options_.seed); });
+            image = quietly([&] { return views->render(cam, s.spp, options_.seed); });
             row.render = timer.seconds();
             row.renderRays = raysCast() - rays1;
         }
@@ -456,8 +454,8 @@ void Bench::measureThreads(BenchResult& result) {
     const Camera cam = camera();
     const SolveRecord& rec = solveFor(baseSetting(baseline_, "final-gather", "default"));
     const auto solved = quietly([&] {
-        return std::make_unique<SolvedScene>(scene_, rec.patches, interpolateCorners(rec.patches, rec.display),
-                                             GatherSettings{}, PhotonSettings{}, options_.seed, rec.rays);
+        return std::make_unique<SolvedScene>(scene_, rec.solved.patches, rec.solved.corners, GatherSettings{},
+                                             PhotonSettings{}, options_.seed, rec.solved.rays);
     });
     const int spp = options_.quick ? 1 : 4;
     auto gather = [&] { return solved->render(cam, spp, options_.seed).rgb; };
@@ -509,8 +507,8 @@ BenchResult Bench::run() {
             result.gatherRays = double(row.renderRays);
             result.gatherSeconds = row.render;
             const SolveRecord& rec = *records.back();
-            result.formFactorRays = double(rec.formFactorRays);
-            result.formFactorSeconds = rec.formFactors;
+            result.formFactorRays = double(rec.solved.counters.at("form_factors.visibility_rays"));
+            result.formFactorSeconds = rec.solved.secondsFormFactors;
         }
         logInfo("bench: [", k + 1, "/", plan_.size(), "] ", cat(s.method, ", ", settingText(s)), ": ", row.total(),
                 " s, error ", 100 * row.imageError, "%");
@@ -519,12 +517,12 @@ BenchResult Bench::run() {
     // Radiosity per object against the finest solve of the sweep (whose own rows have none).
     const SolveRecord* finest = nullptr;
     for (const auto& [key, rec] : solves_)
-        if (rec->links == 0 && (!finest || rec->patches.size() > finest->patches.size()))
+        if (rec->solved.hierarchy.links == 0 && (!finest || rec->patches().size() > finest->patches().size()))
             finest = rec.get();  // a matrix solve
     for (size_t k = 0; k < result.rows.size(); ++k) {
-        if (!records[k] || !finest || records[k]->patches.size() == finest->patches.size()) continue;
+        if (!records[k] || !finest || records[k]->patches().size() == finest->patches().size()) continue;
         const auto [worst, mean] =
-            objectErrors(scene_, records[k]->patches, records[k]->objectMean, finest->objectMean);
+            objectErrors(scene_, records[k]->patches(), records[k]->objectMean, finest->objectMean);
         result.rows[k].objectErrorMax = worst;
         result.rows[k].objectErrorMean = mean;
     }

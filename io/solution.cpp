@@ -48,7 +48,7 @@ struct Reader {
 
 }  // namespace
 
-void writeSolution(const std::string& path, const StoredSolution& s) {
+void writeSolution(const std::string& path, const SolveResult& s) {
     PENUMBRA_CHECK_EQ(s.corners.size(), s.patches.size());
     Writer w;
     w.bytes.append(kMagic, 8);
@@ -61,14 +61,14 @@ void writeSolution(const std::string& path, const StoredSolution& s) {
         w.put(int32_t(s.patches.object[i]));
         for (int k = 0; k < 4; ++k) w.put(s.patches.corners[i][size_t(k)]);
         for (int k = 0; k < 4; ++k) w.put(int32_t(s.patches.cornerVertex[i][size_t(k)]));
-        w.put(s.radiosity[i]);
-        w.put(s.display[i]);
+        w.put(s.solution.B[i]);
+        w.put(s.solution.display[i]);
         for (int k = 0; k < 4; ++k) w.put(s.corners[i][size_t(k)]);
     }
     writeFileAtomic(path, w.bytes);
 }
 
-StoredSolution readSolution(const std::string& path) {
+SolveResult readSolution(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw Error(cat(path, ": no solution here (solve the scene first with `penumbra solve SCENE --out DIR`)"));
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -76,7 +76,7 @@ StoredSolution readSolution(const std::string& path) {
     if (bytes.size() < 8 || (!v01 && std::memcmp(bytes.data(), kMagic, 8) != 0))
         throw Error(cat(path, ": not a Penumbra solution file (or from an incompatible version)"));
     Reader r{bytes, path, 8};
-    StoredSolution s;
+    SolveResult s;
     s.sceneFingerprint = r.get<uint64_t>();
     const uint64_t n = r.get<uint64_t>(), nv = r.get<uint64_t>();
     if (n > bytes.size() || nv > bytes.size()) throw Error(cat(path, ": solution file is damaged"));
@@ -93,8 +93,8 @@ StoredSolution readSolution(const std::string& path) {
         }
         if (count != 3 && count != 4) throw Error(cat(path, ": solution file is damaged"));
         s.patches.add(c, count, object, ids);
-        s.radiosity.push_back(r.rgb());
-        s.display.push_back(r.rgb());
+        s.solution.B.push_back(r.rgb());
+        s.solution.display.push_back(r.rgb());
         if (!v01) {
             std::array<Rgb, 4> uniform;
             for (auto& value : uniform) value = r.rgb();
@@ -102,7 +102,7 @@ StoredSolution readSolution(const std::string& path) {
         }
     }
     if (s.patches.size() != n) throw Error(cat(path, ": solution file is damaged (degenerate patch)"));
-    if (v01) s.corners = interpolateCorners(s.patches, s.display);
+    if (v01) s.corners = interpolateCorners(s.patches, s.solution.display);
     return s;
 }
 

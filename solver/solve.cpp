@@ -68,10 +68,27 @@ namespace {
 
 constexpr size_t kAutoMatrixPatches = 12000;  // past this the n^2 form factors take minutes
 
+}  // namespace
+
+void solveBuiltMatrix(const SolveOptions& options, const StepObserver& observer, SolveResult& r) {
+    const auto solver = makeSolver(options.solver);
+    Timer solveTimer;
+    r.solution = solver->solve(r.F, r.system, options.solverSettings, observer);
+    r.secondsSolve += solveTimer.seconds();
+    logInfo(options.solver, ": ", r.solution.iterations, " iterations, residual ", r.solution.residual, " in ",
+            solveTimer.seconds(), " s");
+    r.power = powerBalance(r.system, r.F, r.solution.B);
+    Timer vertexTimer;
+    r.corners = options.gatherVertices ? gatherCorners(r.patches, r.system, r.F, r.solution.display, *r.rays)
+                                       : interpolateCorners(r.patches, r.solution.display);
+    r.secondsVertices += vertexTimer.seconds();
+}
+
+namespace {
+
 // One solve of the matrix system on the patches in `r`: form factors, specular transport, the
 // iterative solve and the power balance. Stage times add to those already in `r`.
 void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObserver& observer, SolveResult& r) {
-    auto solver = makeSolver(options.solver);
     const size_t n = r.patches.size();
     const double budget = options.maxMemoryBytes > 0 ? options.maxMemoryBytes : availableMemoryBytes();
     const double need = double(formFactorMatrixBytes(n)) + 400.0 * double(n);
@@ -103,16 +120,7 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
         logInfo("no mirrors or glass in the scene: no specular transport");
     }
     checkSteadyState(scene, r.system, rows);
-    Timer solveTimer;
-    r.solution = solver->solve(r.F, r.system, options.solverSettings, observer);
-    r.secondsSolve += solveTimer.seconds();
-    logInfo(options.solver, ": ", r.solution.iterations, " iterations, residual ", r.solution.residual, " in ",
-            solveTimer.seconds(), " s");
-    r.power = powerBalance(r.system, r.F, r.solution.B);
-    Timer vertexTimer;
-    r.corners = options.gatherVertices ? gatherCorners(r.patches, r.system, r.F, r.solution.display, *r.rays)
-                                       : interpolateCorners(r.patches, r.solution.display);
-    r.secondsVertices += vertexTimer.seconds();
+    solveBuiltMatrix(options, observer, r);
 }
 
 // The roots with every quad that is not flat (a bilinear patch of a non-planar wall, like the Cornell
@@ -165,18 +173,10 @@ void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveRes
     r.secondsSolve = h.stats.secondsSolve;
     r.patches = std::move(h.leaves);
     r.rays = buildRayScene(scene, r.patches);
-    r.system = buildSystem(scene, r.patches);
     r.solution = std::move(h.solution);
     r.solution.B = h.B;
-    r.solution.display = h.B;
-    r.power.emitted.resize(r.patches.size());
-    r.power.absorbed = h.absorbed;
-    for (size_t i = 0; i < r.patches.size(); ++i) {
-        r.power.emitted[i] = r.patches.area[i] * r.system.emission[i];
-        r.power.totalEmitted += r.power.emitted[i];
-        r.power.totalAbsorbed += r.power.absorbed[i];
-    }
-    r.power.escaped = h.escaped;
+    r.solution.display = std::move(h.B);
+    r.power = std::move(h.power);
     logInfo("hierarchical: ", h.stats.leaves, " leaves (", h.stats.elements, " elements over ", h.stats.roots,
             " roots), ", h.stats.links, " links, ", h.stats.bytes / (1 << 20),
             " MiB (the matrix of as many patches: ", double(formFactorMatrixBytes(h.stats.leaves)) / (1 << 20),
@@ -314,6 +314,7 @@ SolveResult solveScene(const Scene& scene, const SolveOptions& options, const St
     const CounterValues before = counterValues();
     SolveResult r = solveUncounted(scene, options, observer);
     r.counters = countersSince(before);
+    r.sceneFingerprint = scene.fingerprint;
     return r;
 }
 

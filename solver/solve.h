@@ -38,10 +38,11 @@ struct RefineRound {
 };
 
 struct SolveResult {
-    SolveOptions options;      // the settings (and seed, options.formFactors.seed) that made this result
-    std::string solverName;    // the solver that ran (auto resolved)
-    std::string solverReason;  // why auto chose it (empty when named)
-    HierarchyStats hierarchy;  // --solver hierarchical only
+    SolveOptions options;           // the settings (and seed, options.formFactors.seed) that made this result
+    uint64_t sceneFingerprint = 0;  // of the scene file solved (Scene::fingerprint)
+    std::string solverName;         // the solver that ran (auto resolved)
+    std::string solverReason;       // why auto chose it (empty when named)
+    HierarchyStats hierarchy;       // --solver hierarchical only
     PatchSet patches;
     std::shared_ptr<const RayScene> rays;  // the mesh's one ray scene (buildRayScene), shared by all that trace it
     FormFactorMatrix F;
@@ -56,6 +57,12 @@ struct SolveResult {
 };
 
 SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer = {});
+
+// The tail of every matrix solve, on the system `r` holds (form factors, specular transport): the
+// iterations of `options.solver` (a matrix solver's name) to `options.solverSettings`, the power
+// balance and the displayed corners; its seconds add to r's. The bench solves one matrix to several
+// tolerances with it.
+void solveBuiltMatrix(const SolveOptions& options, const StepObserver& observer, SolveResult& r);
 
 // Every solver --solver accepts, in the order shown to users: auto, the matrix solvers
 // (solvers.h), the hierarchy; with what each does.

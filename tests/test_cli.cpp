@@ -149,9 +149,9 @@ TEST(Cli, SceneWithoutEmitterWarnsAndSolvesToBlack) {
     for (const char* key : {"emitted_power_w", "absorbed_power_w", "escaped_power_w"})
         for (const auto& v : report["totals"][key]) EXPECT_EQ(v.get<double>(), 0.0) << key;
     for (const auto& v : report["objects"]["q"]["radiosity_mean"]) EXPECT_EQ(v.get<double>(), 0.0);
-    const StoredSolution solution = readSolution(test::tempDir() + "/dark/solution.bin");
-    ASSERT_FALSE(solution.radiosity.empty());
-    for (const Rgb& B : solution.radiosity) EXPECT_EQ(B.abs().maxCoeff(), 0.0);
+    const SolveResult solution = readSolution(test::tempDir() + "/dark/solution.bin");
+    ASSERT_FALSE(solution.solution.B.empty());
+    for (const Rgb& B : solution.solution.B) EXPECT_EQ(B.abs().maxCoeff(), 0.0);
     for (const auto& corners : solution.corners)
         for (const Rgb& c : corners) EXPECT_EQ(c.abs().maxCoeff(), 0.0);
 }

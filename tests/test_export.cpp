@@ -69,7 +69,7 @@ TEST(Export, GltfReloadsWithOneColourPerVertexInItsStatedToneMapping) {
     for (size_t k = 0; k < colour.size(); ++k) ASSERT_NEAR(colour[k], std::min(1.0, exposure * radiance[k]), 1e-6);
 
     // Against the solution: the solved patches, in the order the export walks them.
-    const StoredSolution solution = readSolution(dir + "/solution.bin");
+    const SolveResult solution = readSolution(dir + "/solution.bin");
     const PatchSet& patches = solution.patches;
     size_t v = 0;
     for (size_t i = 0; i < patches.size(); ++i) {

@@ -325,11 +325,15 @@ private:
             if (firstChild_[i] >= 0) continue;
             leaves.add(nodes_.corners[i], nodes_.cornerCount[i], nodes_.object[i], {0, 0, 0, 0});
             out.B.push_back(B_[i]);
-            out.absorbed.push_back(nodes_.area[i] * (1 - rho_[i]) * total_[i]);
+            PowerBalance& p = out.power;
+            p.emitted.push_back(nodes_.area[i] * E_[i]);
+            p.absorbed.push_back(nodes_.area[i] * (1 - rho_[i]) * total_[i]);
+            p.totalEmitted += p.emitted.back();
+            p.totalAbsorbed += p.absorbed.back();
             leaving += nodes_.area[i] * B_[i];
             arriving += nodes_.area[i] * total_[i];
         }
-        out.escaped = leaving - arriving;
+        out.power.escaped = leaving - arriving;
         out.leaves = shareVertices(leaves);
         stats_.roots = rootCount();
         stats_.elements = nodes_.size();

@@ -42,8 +42,7 @@ struct HierarchyStats {
 struct HierarchyResult {
     PatchSet leaves;             // the finest elements, as patches (display vertices shared)
     std::vector<Rgb> B;          // exitance per leaf, W/m^2
-    std::vector<Rgb> absorbed;   // power absorbed per leaf, W
-    Rgb escaped = Rgb::Zero();   // what leaves the surfaces and reaches none of them, W
+    PowerBalance power;          // per leaf: emitted and absorbed; escaped: what reaches no surface, W
     RadiositySolution solution;  // iterations, residual and history of the last round
     HierarchyStats stats;
 };
