@@ -1,6 +1,7 @@
 // The `penumbra` command line: parses, calls the library, catches once, exits. The verbs and
 // options are those of shared/CONTRACT.md plus extensions listed in `penumbra --help`.
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -71,61 +72,40 @@ struct RenderCli {
     PhotonSettings photons;
 };
 
+// Any positive number: one short message, where CLI11's own check quotes the largest double.
+const CLI::Validator kPositive(
+    [](std::string& text) {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        return end != text.c_str() && *end == 0 && v > 0 && std::isfinite(v)
+                   ? std::string()
+                   : cat("expected a positive number, got ", text);
+    },
+    "POSITIVE");
+
 void addSolveOptions(CLI::App* cmd, SolveCli& s) {
-    s.patches = cmd->add_option("--patches", s.options.meshing.targetPatches,
-                                "About this many patches in all (with --refine: to start from, default 400)")
-                    ->capture_default_str()
-                    ->check(CLI::Range(1, 100000000));
-    cmd->add_option("--patch-size", s.options.meshing.patchSize,
-                    "Target patch edge length in metres (overrides --patches)")
-        ->check(CLI::PositiveNumber);
+    for (const SolveSetting& e : solveSettings(s.options)) {
+        CLI::Option* option = std::visit([&](auto* value) { return cmd->add_option(e.flag, *value, e.help); }, e.value);
+        if (std::holds_alternative<int*>(e.value))
+            option->check(CLI::Range(int64_t(e.min), int64_t(e.max)));
+        else if (std::isinf(e.max) && e.min == 0)
+            option->check(kPositive);
+        else
+            option->check(CLI::Range(e.min, e.max));
+        if (e.showDefault) option->capture_default_str();
+        if (std::string(e.key) == "patches") s.patches = option;
+    }
     std::string solverHelp;
     for (const SolverInfo& e : solverRegistry())
         solverHelp += cat(solverHelp.empty() ? "" : "; ", e.name, ": ", e.summary);
     cmd->add_option("--solver", s.options.solver, solverHelp)->capture_default_str();
-    cmd->add_option("--link-tolerance", s.options.hierarchy.linkTolerance,
-                    "Hierarchical: split a link while it carries more than this share of the emitted power")
-        ->capture_default_str()
-        ->check(CLI::Range(1e-9, 1.0));
-    cmd->add_option("--roots", s.options.hierarchyRoots, "Hierarchical: the scene is meshed into about this many roots")
-        ->capture_default_str()
-        ->check(CLI::Range(1, 1000000));
-    cmd->add_option("--tolerance", s.options.solverSettings.tolerance,
-                    "Stop when the unshot fraction of the emitted power falls below this")
-        ->capture_default_str()
-        ->check(CLI::PositiveNumber);
-    cmd->add_option("--max-iterations", s.options.solverSettings.maxIterations, "Iteration cap")
-        ->capture_default_str()
-        ->check(CLI::Range(1, 100000000));
-    cmd->add_option("--visibility-rays", s.options.formFactors.visibilityRays,
-                    "Visibility rays per patch pair (x4 where a shadow edge crosses the pair)")
-        ->capture_default_str()
-        ->check(CLI::Range(1, 4096));
-    cmd->add_option("--ff-tolerance", s.options.formFactors.cubature.tolerance,
-                    "Target relative error of each unoccluded form factor")
-        ->capture_default_str()
-        ->check(CLI::Range(1e-12, 1.0));
-    cmd->add_option("--specular-rays", s.options.specular.raysPerPatch,
-                    "Rays per patch that trace light through mirrors and glass in the solve")
-        ->capture_default_str()
-        ->check(CLI::Range(1, 1 << 24));
-    cmd->add_option("--refine", s.options.refine.tolerance,
-                    "Adaptive subdivision: after each solve, split patches whose radiosity differs from a neighbour's, "
-                    "or whose light a shadow edge changes, by more than this fraction (e.g. 0.1)")
-        ->check(CLI::Range(1e-6, 10.0));
-    cmd->add_option("--max-patches", s.options.refine.maxPatches, "Patch budget of --refine")
-        ->capture_default_str()
-        ->check(CLI::Range(1, 100000000));
-    cmd->add_option("--refine-rounds", s.options.refine.maxRounds, "Most rounds of --refine")
-        ->capture_default_str()
-        ->check(CLI::Range(1, 100));
     cmd->add_option("--vertex-radiosity", s.vertexRadiosity,
                     "Displayed radiosity at the patch corners: gather (the radiosity equation at each vertex) or "
                     "average (the mean of the patches around it; cheaper, blurs edges and contacts)")
         ->capture_default_str()
         ->check(CLI::IsMember({"gather", "average"}));
     cmd->add_option("--max-memory", s.maxMemoryGiB, "Memory budget in GiB for the matrix (default: what is available)")
-        ->check(CLI::PositiveNumber);
+        ->check(kPositive);
 }
 
 void setupLogging(const CommonOptions& c) {

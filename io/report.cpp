@@ -123,27 +123,17 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
     report["scene"] = {{"file", scene.path}, {"unit_scale", scene.unitScale}};
     // How the result was made: every setting of the solve, and the seed (a rerun with these gives
     // the same report, whatever the thread count).
-    const SolveOptions& o = r.options;
-    report["settings"] = {
+    SolveOptions o = r.options;
+    Json& settings = report["settings"];
+    settings = {
         {"seed", o.formFactors.seed},
         {"solver", o.solver},
-        {"patches", o.meshing.targetPatches},
-        {"patch_size_m", o.meshing.patchSize},
-        {"tolerance", o.solverSettings.tolerance},
-        {"max_iterations", o.solverSettings.maxIterations},
-        {"visibility_rays", o.formFactors.visibilityRays},
-        {"ff_tolerance", o.formFactors.cubature.tolerance},
-        {"specular_rays", o.specular.raysPerPatch},
-        {"specular_max_depth", o.specular.maxDepth},
-        {"link_tolerance", o.hierarchy.linkTolerance},
-        {"roots", o.hierarchyRoots},
-        {"refine", o.refine.tolerance},
-        {"max_patches", o.refine.maxPatches},
-        {"refine_rounds", o.refine.maxRounds},
         {"vertex_radiosity", o.gatherVertices ? "gather" : "average"},
         {"max_memory_gib", o.maxMemoryBytes / double(1ull << 30)},
         {"threads", threadCount()},
     };
+    for (const SolveSetting& e : solveSettings(o))
+        settings[e.key] = std::visit([](auto* v) { return Json(*v); }, e.value);
     return report.dump(2) + "\n";
 }
 

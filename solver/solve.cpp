@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <numeric>
 #include <sstream>
 
@@ -213,6 +214,40 @@ std::string chooseSolver(const Scene& scene, const SolveOptions& options, size_t
 }
 
 }  // namespace
+
+std::vector<SolveSetting> solveSettings(SolveOptions& o) {
+    // (0, infinity): any positive number.
+    constexpr double kPositive = 0, kHuge = std::numeric_limits<double>::infinity();
+    return {
+        {"patches", "--patches", "About this many patches in all (with --refine: to start from, default 400)", 1, 1e8,
+         true, &o.meshing.targetPatches},
+        {"patch_size_m", "--patch-size", "Target patch edge length in metres (overrides --patches)", kPositive, kHuge,
+         false, &o.meshing.patchSize},
+        {"link_tolerance", "--link-tolerance",
+         "Hierarchical: split a link while it carries more than this share of the emitted power", 1e-9, 1, true,
+         &o.hierarchy.linkTolerance},
+        {"roots", "--roots", "Hierarchical: the scene is meshed into about this many roots", 1, 1e6, true,
+         &o.hierarchyRoots},
+        {"tolerance", "--tolerance", "Stop when the unshot fraction of the emitted power falls below this", kPositive,
+         kHuge, true, &o.solverSettings.tolerance},
+        {"max_iterations", "--max-iterations", "Iteration cap", 1, 1e8, true, &o.solverSettings.maxIterations},
+        {"visibility_rays", "--visibility-rays",
+         "Visibility rays per patch pair (x4 where a shadow edge crosses the pair)", 1, 4096, true,
+         &o.formFactors.visibilityRays},
+        {"ff_tolerance", "--ff-tolerance", "Target relative error of each unoccluded form factor", 1e-12, 1, true,
+         &o.formFactors.cubature.tolerance},
+        {"specular_rays", "--specular-rays", "Rays per patch that trace light through mirrors and glass in the solve",
+         1, 1 << 24, true, &o.specular.raysPerPatch},
+        {"specular_max_depth", "--specular-depth", "Mirror and glass bounces the solve's transport follows", 0, 1000,
+         true, &o.specular.maxDepth},
+        {"refine", "--refine",
+         "Adaptive subdivision: after each solve, split patches whose radiosity differs from a neighbour's, or whose "
+         "light a shadow edge changes, by more than this fraction (e.g. 0.1)",
+         1e-6, 10, false, &o.refine.tolerance},
+        {"max_patches", "--max-patches", "Patch budget of --refine", 1, 1e8, true, &o.refine.maxPatches},
+        {"refine_rounds", "--refine-rounds", "Most rounds of --refine", 1, 100, true, &o.refine.maxRounds},
+    };
+}
 
 std::vector<SolverInfo> solverRegistry() {
     std::vector<SolverInfo> out{{"auto",

@@ -4,6 +4,8 @@
 
 #include <memory>
 #include <string>
+#include <variant>
+#include <vector>
 
 #include "core/counters.h"
 #include "mesh/patches.h"
@@ -63,6 +65,21 @@ SolveResult solveScene(const Scene& scene, const SolveOptions& options, const St
 // balance and the displayed corners; its seconds add to r's. The bench solves one matrix to several
 // tolerances with it.
 void solveBuiltMatrix(const SolveOptions& options, const StepObserver& observer, SolveResult& r);
+
+// One numeric setting of a solve, written once: its key in report.json's "settings", its command-line
+// flag and help, the range it accepts, and where it lives in SolveOptions. The solve's command-line
+// options and the report's settings both come from solveSettings(); what is not a plain number (the
+// solver's name, the vertex radiosity mode, the memory budget in GiB, the seed) is added by each.
+struct SolveSetting {
+    const char* key;   // report.json "settings" key
+    const char* flag;  // command-line flag
+    const char* help;
+    double min, max;   // accepted, inclusive; (0, infinity) for any positive number
+    bool showDefault;  // the help shows the default (not for settings whose default means "off")
+    std::variant<int*, double*> value;
+};
+// The table, its values pointing into `o`.
+std::vector<SolveSetting> solveSettings(SolveOptions& o);
 
 // Every solver --solver accepts, in the order shown to users: auto, the matrix solvers
 // (solvers.h), the hierarchy; with what each does.

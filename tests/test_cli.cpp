@@ -7,12 +7,15 @@
 #include <array>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "fixtures.h"
 #include "io/image_io.h"
 #include "io/solution.h"
 #include "render/image_metrics.h"
+#include "solver/solve.h"
 
 using namespace penumbra;
 namespace fs = std::filesystem;
@@ -222,6 +225,35 @@ TEST(Cli, RefinedSolveReportsItsRoundsAndConforms) {
     EXPECT_EQ(report["solver"]["patches"].get<int>(), rounds.back()["patches"].get<int>());
     const std::string checker = std::string(PENUMBRA_SHARED_DIR) + "/tools/check-report";
     EXPECT_EQ(std::system(cat("python3 ", checker, " ", out, "/report.json ", scene, " > /dev/null").c_str()), 0);
+}
+
+TEST(Cli, EverySolveSettingIsAFlagAndComesBackInTheReport) {
+    // One value per entry of the settings table, none of them the default: each flag must reach its
+    // field (the report says what the solve used) under the key the table gives. A new entry without
+    // a value here fails the first check.
+    const std::map<std::string, double> values{
+        {"patches", 60},       {"patch_size_m", 0.25},    {"link_tolerance", 2e-4}, {"roots", 9},
+        {"tolerance", 3e-5},   {"max_iterations", 777},   {"visibility_rays", 3},   {"ff_tolerance", 2e-4},
+        {"specular_rays", 33}, {"specular_max_depth", 7}, {"refine", 0.5},          {"max_patches", 90},
+        {"refine_rounds", 2}};
+    SolveOptions defaults;
+    std::string flags;
+    for (const SolveSetting& e : solveSettings(defaults)) {
+        ASSERT_TRUE(values.count(e.key)) << "no test value for setting " << e.key;
+        const double given = values.at(e.key);
+        EXPECT_NE(std::visit([](auto* v) { return double(*v); }, e.value), given) << e.key << ": pick a non-default";
+        flags += cat(" ", e.flag, " ", given);
+    }
+    EXPECT_EQ(values.size(), solveSettings(defaults).size());
+    const std::string out = test::tempDir() + "/every-setting";
+    fs::remove_all(out);
+    const CommandResult r =
+        run(cat("solve ", test::writeText("settings.json", sceneWith("", "")), " --out ", out, " --seed 5", flags));
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::ifstream in(out + "/report.json");
+    const nlohmann::json settings = nlohmann::json::parse(in)["settings"];
+    for (const auto& [key, given] : values) EXPECT_DOUBLE_EQ(settings.at(key).get<double>(), given) << key;
+    EXPECT_EQ(settings.at("seed").get<int>(), 5);
 }
 
 TEST(CliErrors, RenderWithoutCameraIsRefused) {
