@@ -99,6 +99,12 @@ void addSolveOptions(CLI::App* cmd, SolveCli& s) {
     for (const SolverInfo& e : solverRegistry())
         solverHelp += cat(solverHelp.empty() ? "" : "; ", e.name, ": ", e.summary);
     cmd->add_option("--solver", s.options.solver, solverHelp)->capture_default_str();
+    cmd->add_option("--form-factors", s.options.formFactors.method,
+                    "analytic: cubature of the point-to-polygon kernel with visibility rays (accurate, the closed "
+                    "forms' mode); rays: the share of each patch's cosine rays that lands on each patch (rows sum "
+                    "to one by construction, at Embree's ray rate; noise about 1/sqrt(--ff-rays))")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"analytic", "rays"}));
     cmd->add_option("--vertex-radiosity", s.vertexRadiosity,
                     "Displayed radiosity at the patch corners: gather (the radiosity equation at each vertex) or "
                     "average (the mean of the patches around it; cheaper, blurs edges and contacts)")

@@ -26,6 +26,7 @@ enum class Stream : uint64_t {
     EscapeRays = 0xe5ca9e,       // rays counting the escaped power, per patch
     CausticRegion = 0xca057,     // emitter samples that find the caustic region, per pixel
     BenchReference = 0x5EF,      // the bench's path-traced reference image
+    CastFormFactors = 0xCA57,    // ray-cast form factors, per patch
 };
 
 class Rng {

@@ -127,6 +127,7 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
     Json& settings = report["settings"];
     settings = {
         {"seed", o.formFactors.seed},
+        {"form_factors", o.formFactors.method},
         {"solver", o.solver},
         {"vertex_radiosity", o.gatherVertices ? "gather" : "average"},
         {"max_memory_gib", o.maxMemoryBytes / double(1ull << 30)},

@@ -11,6 +11,7 @@
 #include "core/log.h"
 #include "core/timer.h"
 #include "mesh/refine.h"
+#include "solver/radiosity/ray_form_factors.h"
 #include "solver/radiosity/vertex_radiosity.h"
 #include "solver/tracer.h"
 #include "solver/visibility.h"
@@ -69,6 +70,22 @@ namespace {
 
 constexpr size_t kAutoMatrixPatches = 12000;  // past this the n^2 form factors take minutes
 
+// The emitting patches, when they cover less than a tenth of the surface: small bright sources,
+// which cosine rays rarely find, and whose columns ray-cast form factors take analytically. Where
+// light comes from everywhere (a furnace) the rays find it as well as anything else: none.
+std::vector<char> smallSources(const Scene& scene, const PatchSet& patches) {
+    std::vector<char> emits(patches.size(), 0);
+    double emitting = 0, total = 0;
+    for (size_t i = 0; i < patches.size(); ++i) {
+        const Material& m = scene.materialOf(scene.objects[size_t(patches.object[i])]);
+        emits[i] = m.type == MaterialType::Diffuse && m.emits();
+        emitting += emits[i] ? patches.area[i] : 0;
+        total += patches.area[i];
+    }
+    if (!(emitting < 0.1 * total)) return {};
+    return emits;
+}
+
 }  // namespace
 
 void solveBuiltMatrix(const SolveOptions& options, const StepObserver& observer, SolveResult& r) {
@@ -104,7 +121,9 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
     Timer ffTimer;
     r.F = FormFactorMatrix();  // the previous round's matrix goes before the next one is made
     r.rays = buildRayScene(scene, r.patches);
-    r.F = computeFormFactors(r.patches, *r.rays, options.formFactors);
+    r.F = options.formFactors.method == "rays"
+              ? castFormFactors(r.patches, *r.rays, options.formFactors, smallSources(scene, r.patches))
+              : computeFormFactors(r.patches, *r.rays, options.formFactors);
     r.secondsFormFactors += ffTimer.seconds();
     const std::vector<double> rows = rowSums(r.F);
     r.rowSumMin = n ? *std::min_element(rows.begin(), rows.end()) : 0;
@@ -236,6 +255,8 @@ std::vector<SolveSetting> solveSettings(SolveOptions& o) {
          &o.formFactors.visibilityRays},
         {"ff_tolerance", "--ff-tolerance", "Target relative error of each unoccluded form factor", 1e-12, 1, true,
          &o.formFactors.cubature.tolerance},
+        {"ff_rays", "--ff-rays", "--form-factors rays: rays cast from each patch", 1, 1 << 24, true,
+         &o.formFactors.raysPerPatch},
         {"specular_rays", "--specular-rays", "Rays per patch that trace light through mirrors and glass in the solve",
          1, 1 << 24, true, &o.specular.raysPerPatch},
         {"specular_max_depth", "--specular-depth", "Mirror and glass bounces the solve's transport follows", 0, 1000,

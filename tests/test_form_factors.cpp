@@ -3,6 +3,7 @@
 // integrations, and closure of a box.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 
 #include "fixtures.h"
@@ -145,4 +146,110 @@ TEST(FormFactorMatrix, ClosedBoxRowsSumToOne) {
     EXPECT_NEAR(r.rowSumMax, 1.0, 1e-5);
     // In a closed box nothing escapes.
     EXPECT_NEAR(r.power.escaped.sum(), 0.0, 1e-5 * r.power.totalEmitted.sum());
+}
+
+namespace {
+
+// A closed box floating in the furnace cube (six outward quads) and a faceted sphere: occluders whose
+// shadows sampled visibility gets only approximately right.
+std::string furnaceWithOccluders(double rho) {
+    const double x0 = 0.15, x1 = 0.45, y0 = 0.1, y1 = 0.55, z0 = 0.2, z1 = 0.5;
+    auto quad = [](const char* name, std::initializer_list<std::array<double, 3>> v) {
+        std::string text = cat(R"(, {"name": ")", name, R"(", "type": "quad", "material": "m", "vertices": [)");
+        bool first = true;
+        for (const auto& p : v) {
+            text += cat(first ? "" : ",", "[", p[0], ",", p[1], ",", p[2], "]");
+            first = false;
+        }
+        return text + "]}";
+    };
+    const std::string box = quad("box_bottom", {{x0, y0, z0}, {x1, y0, z0}, {x1, y0, z1}, {x0, y0, z1}}) +
+                            quad("box_top", {{x0, y1, z0}, {x0, y1, z1}, {x1, y1, z1}, {x1, y1, z0}}) +
+                            quad("box_left", {{x0, y0, z0}, {x0, y0, z1}, {x0, y1, z1}, {x0, y1, z0}}) +
+                            quad("box_right", {{x1, y0, z0}, {x1, y1, z0}, {x1, y1, z1}, {x1, y0, z1}}) +
+                            quad("box_front", {{x0, y0, z0}, {x0, y1, z0}, {x1, y1, z0}, {x1, y0, z0}}) +
+                            quad("box_back", {{x0, y0, z1}, {x1, y0, z1}, {x1, y1, z1}, {x0, y1, z1}});
+    return test::furnaceCube(
+        rho, "", false,
+        box + R"(, {"name": "ball", "type": "sphere", "material": "m", "center": [0.7, 0.45, 0.65], "radius": 0.2})");
+}
+
+SolveResult solveByRays(const std::string& json, int patches, int rays, const std::string& solver = "gauss-seidel",
+                        double tolerance = 1e-9) {
+    SolveOptions o;
+    o.meshing.targetPatches = patches;
+    o.formFactors.method = "rays";
+    o.formFactors.raysPerPatch = rays;
+    o.solver = solver;
+    o.solverSettings.tolerance = tolerance;
+    o.solverSettings.maxIterations = 10000000;
+    return solveScene(test::sceneFromJson(json), o);
+}
+
+}  // namespace
+
+TEST(RayFormFactors, RowsOfAClosedSceneSumToOneWhateverTheOccluders) {
+    const SolveResult r = solveByRays(furnaceWithOccluders(0.5), 300, 256);
+    ASSERT_TRUE(r.F.sampled);
+    for (double s : rowSums(r.F)) ASSERT_NEAR(s, 1.0, 1e-6) << "every ray lands on a front face";
+    EXPECT_TRUE(r.F.backTransfers.empty()) << "no back face is in sight in a closed scene of closed objects";
+}
+
+class RayFurnace : public ::testing::TestWithParam<std::tuple<std::string, double>> {};
+
+TEST_P(RayFurnace, EveryPatchHoldsEOverOneMinusRho) {
+    // The furnace with occluders, towards rho = 1: B = E / (1 - rho) everywhere, because every row
+    // of the ray-cast transport sums to one (the analytic matrix reads 1.2% off at rho = 0.995, the
+    // hierarchy 45%: issue 13). Only rounding and the solver's tolerance remain.
+    const auto [solver, rho] = GetParam();
+    const SolveResult r =
+        solveByRays(furnaceWithOccluders(rho), test::kSanitized ? 120 : 250, 64, solver, 1e-5 * (1 - rho));
+    const double expected = kPi / (1 - rho);
+    double worst = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i)
+        for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(r.solution.B[i][c] / expected - 1));
+    EXPECT_LT(worst, 5e-3) << solver << " at rho " << rho;
+    EXPECT_NEAR(r.power.totalAbsorbed[0], r.power.totalEmitted[0], 5e-3 * r.power.totalEmitted[0]);
+}
+
+INSTANTIATE_TEST_SUITE_P(Solvers, RayFurnace,
+                         ::testing::Combine(::testing::Values("jacobi", "gauss-seidel", "southwell"),
+                                            ::testing::Values(0.9, 0.99, 0.999)));
+
+TEST(RayFormFactors, ParallelSquaresWithinTheirSamplingError) {
+    // Howell's parallel unit squares at distance 1: F = 0.19982. Each of the k patches' N rays lands
+    // on the other square with probability F (on average over the patch): the object-level estimate's
+    // standard error is at most sqrt(F (1 - F) / (k N)), stratification only lowering it.
+    const int rays = 1024;
+    const SolveResult r = solveByRays(kTwoSquaresParallel, 64, rays);
+    const double k = double(r.patches.size()) / 2;
+    const double exact = test::parallelRectangles(1, 1, 1);
+    const double sigma = std::sqrt(exact * (1 - exact) / (k * rays));
+    EXPECT_NEAR(test::objectFormFactor(r, 0, 1), exact, 4.5 * sigma);
+    EXPECT_NEAR(test::objectFormFactor(r, 1, 0), exact, 4.5 * sigma);
+    // And a ray is a ray: the counter says how many were cast.
+    EXPECT_EQ(r.counters.at("form_factors.cast_rays"), uint64_t(r.patches.size()) * rays);
+}
+
+TEST(RayFormFactors, ASmallLampsLightIsExactNotSampled) {
+    // The 0.2 m lamp over the floor covers 1% of the surface: its column is taken analytically, so each
+    // floor patch's radiosity is rho E F(patch -> lamp) to the cubature's accuracy. By rays alone, a
+    // patch's 64 rays would find the lamp about twice at the centre, and never at the rim.
+    SolveOptions o;
+    o.meshing.patchSize = 0.2;
+    o.formFactors.method = "rays";
+    o.formFactors.raysPerPatch = 64;
+    const SolveResult r = solveScene(test::sceneFromJson(test::lampOverFloor(false)), o);
+    double worst = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        if (r.patches.object[i] != 0) continue;
+        // The patch's mean of the closed form, by a 4 x 4 midpoint rule.
+        double exact = 0;
+        for (int a = 0; a < 4; ++a)
+            for (int b = 0; b < 4; ++b)
+                exact += test::unshadowedFloor(r.patches.pointAt(i, (a + 0.5) / 4, (b + 0.5) / 4));
+        exact /= 16;
+        worst = std::max(worst, std::abs(r.solution.B[i][0] - exact) / exact);
+    }
+    EXPECT_LT(worst, 5e-3);
 }

@@ -216,6 +216,24 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
     return F;
 }
 
+double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, size_t j,
+                       const FormFactorSettings& settings) {
+    if (i == j) return 0;
+    const size_t a = std::min(i, j), b = std::max(i, j);
+    const PlaneSides bSeenByA = planeSides(patches, a, b), aSeenByB = planeSides(patches, b, a);
+    if (!bSeenByA.front || !aSeenByB.front) return 0;
+    const Visibility vis = visibleFraction(patches, rays, a, b, 1, 1, bSeenByA.straddles() || aSeenByB.straddles(),
+                                           settings.visibilityRays, settings.seed);
+    g_visibilityRays.add(uint64_t(vis.rays));
+    if (vis.fraction == 0) return 0;
+    uint64_t evaluations = 0;
+    const bool aSmaller = patches.area[a] <= patches.area[b];
+    const AreaFactors g =
+        unoccludedAreaFactors(patches, aSmaller ? a : b, aSmaller ? b : a, settings.cubature, &evaluations);
+    g_kernelEvaluations.add(evaluations);
+    return vis.fraction * g.front / patches.area[i];
+}
+
 std::vector<double> rowSums(const FormFactorMatrix& F) {
     std::vector<double> sums(F.size(), 0.0);
     for (size_t i = 0; i < F.size(); ++i) {

@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "core/rng.h"
@@ -18,7 +19,9 @@ namespace penumbra {
 
 struct FormFactorSettings {
     CubatureSettings cubature;
-    int visibilityRays = 4;  // per pair; pairs found partly visible get 4x as many
+    int visibilityRays = 4;           // per pair; pairs found partly visible get 4x as many
+    std::string method = "analytic";  // analytic (cubature and visibility rays) or rays (ray_form_factors.h)
+    int raysPerPatch = 1024;          // --form-factors rays: rays cast from each patch
     uint64_t seed = 1;
 };
 
@@ -41,6 +44,9 @@ public:
     const Dense& dense() const { return values_; }
 
     std::vector<BackTransfer> backTransfers;
+    // Rows estimated by casting rays (ray_form_factors.h): a zero entry may hide a patch that is
+    // seen, and reciprocity holds only on average.
+    bool sampled = false;
 
 private:
     Dense values_;
@@ -69,6 +75,11 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
                            bool clipped, int base, uint64_t seed, Stream stream = Stream::Visibility);
 
 FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings);
+
+// F(i -> j) from i's front to j's front alone, as computeFormFactors finds it (0 unless each lies in
+// front of the other): visibility rays, then the kernel's cubature over the smaller patch.
+double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, size_t j,
+                       const FormFactorSettings& settings);
 
 // The row sums sum_j F(i, j) (front faces only), in double.
 std::vector<double> rowSums(const FormFactorMatrix& F);

@@ -63,12 +63,13 @@ public:
                             const StepObserver& observer) const override {
         RadiositySolution out;
         Run run(settings, out, "gauss-seidel");
+        // One matrix pass per iteration: the pass's change bounds the residual of what it leaves
+        // (system.h), so no second pass measures it. The history starts after the first pass.
         std::vector<Rgb> B = s.emission;
-        for (int k = 0;; ++k) {
-            const double residual = relativeResidual(s, B, gatherIrradiance(s, F, B));
-            if (run.record(k, residual)) break;
-            gaussSeidelPass(s, F, B);
-            if (observer) observer(k + 1, B);
+        for (int k = 1;; ++k) {
+            const double bound = gaussSeidelPass(s, F, B);
+            if (observer) observer(k, B);
+            if (run.record(k, bound)) break;
         }
         out.B = B;
         out.display = B;
@@ -108,10 +109,17 @@ public:
                 if (unshotPower(best) <= 0) break;
                 B[best] += dB;
                 unshot[best] = Rgb::Zero();
-                const float* row = F.row(best);
-                const double ai = s.area[best];
-                for (size_t j = 0; j < n; ++j)
-                    if (row[j] != 0) unshot[j] += s.reflectance[j] * (ai * row[j] / s.area[j]) * dB;
+                if (F.sampled) {
+                    // Ray-cast rows are not reciprocal: what j gathers from `best` is column best.
+                    for (size_t j = 0; j < n; ++j)
+                        if (const float f = F(j, best); f != 0) unshot[j] += s.reflectance[j] * double(f) * dB;
+                } else {
+                    // Reciprocity, A_j F(j, best) = A_best F(best, j): row best, read contiguously.
+                    const float* row = F.row(best);
+                    const double ai = s.area[best];
+                    for (size_t j = 0; j < n; ++j)
+                        if (row[j] != 0) unshot[j] += s.reflectance[j] * (ai * row[j] / s.area[j]) * dB;
+                }
                 if (!s.transport.empty())
                     for (size_t t = s.transport.outStart[best]; t < s.transport.outStart[best + 1]; ++t) {
                         const size_t j = size_t(s.transport.outTarget[t]);

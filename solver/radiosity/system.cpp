@@ -62,12 +62,17 @@ std::vector<Rgb> gatherIrradiance(const RadiositySystem& s, const FormFactorMatr
     return H;
 }
 
-void gaussSeidelPass(const RadiositySystem& s, const FormFactorMatrix& F, std::vector<Rgb>& B) {
+double gaussSeidelPass(const RadiositySystem& s, const FormFactorMatrix& F, std::vector<Rgb>& B) {
     ChannelPlanes planes(B);
+    double change = 0, emitted = 0;
     for (size_t i = 0; i < s.size(); ++i) {
-        B[i] = s.emission[i] + s.reflectance[i] * irradianceAt(s, F, i, B, planes);
+        const Rgb next = s.emission[i] + s.reflectance[i] * irradianceAt(s, F, i, B, planes);
+        change += s.area[i] * (next - B[i]).abs().sum();
+        emitted += s.area[i] * s.emission[i].sum();
+        B[i] = next;
         planes.set(i, B[i]);
     }
+    return emitted > 0 ? change / emitted : 0;
 }
 
 double relativeResidual(const RadiositySystem& s, const std::vector<Rgb>& B, const std::vector<Rgb>& H) {

@@ -47,8 +47,11 @@ inline Rgb irradianceAt(const RadiositySystem& s, const FormFactorMatrix& F, siz
 }
 
 // One Gauss-Seidel pass in place: B_i = E_i + rho_i H_i in patch order, each row reading the values
-// this pass already updated.
-void gaussSeidelPass(const RadiositySystem& s, const FormFactorMatrix& F, std::vector<Rgb>& B);
+// this pass already updated. Returns the pass's change, sum_i A_i |B_i,new - B_i,old| over the
+// emitted power (all channels together): it bounds the relative residual of the new B from above,
+// because what is left of row i's equation is rho_i sum_{j > i} F_ij (change of B_j), and the columns
+// of A F sum to at most the areas (reciprocity, rows summing to at most one).
+double gaussSeidelPass(const RadiositySystem& s, const FormFactorMatrix& F, std::vector<Rgb>& B);
 
 // Irradiance H_i arriving at every front face, W/m^2.
 std::vector<Rgb> gatherIrradiance(const RadiositySystem& s, const FormFactorMatrix& F, const std::vector<Rgb>& B);

@@ -41,7 +41,7 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
                     const Vec3 x =
                         p.vertices[size_t(v)] + 1e-3 * (p.centroid[i] - p.vertices[size_t(v)]) + lift * p.normal[i];
                     Rgb h;
-                    if (F.size() == p.size()) {
+                    if (F.size() == p.size() && !F.sampled) {
                         std::fill(sees.begin(), sees.end(), 0);
                         for (int a : around[size_t(v)])
                             if (p.normal[size_t(a)].dot(p.normal[i]) > 0.999) {

@@ -39,8 +39,8 @@ Rgb irradianceAtPoint(const PatchSet& p, const std::vector<Rgb>& B, const RaySce
 
 // Corner radiosity by the equation at each vertex (averaged over the patches around it within the
 // crease angle, as interpolateCorners does); hanging vertices keep the mean of their coarser edge's
-// ends. `F` limits each vertex to what the patches around it see; an empty F (no matrix: the
-// hierarchy) takes every patch in front of the vertex.
+// ends. `F` limits each vertex to what the patches around it see; an empty or sampled F (the
+// hierarchy; ray-cast rows, whose zeros may hide what is seen) takes every patch in front of it.
 CornerValues gatherCorners(const PatchSet& patches, const RadiositySystem& system, const FormFactorMatrix& F,
                            const std::vector<Rgb>& B, const RayScene& rays, double creaseDeg = 30);
 

@@ -1,0 +1,25 @@
+// Form factors by ray casting (the transport of stochastic radiosity, Bekaert, Neumann and Sbert;
+// Sillion and Puech's ray-traced form factors): from each patch, `raysPerPatch` rays with origins
+// stratified over the patch and cosine-distributed directions, each landing on the first surface it
+// meets. F(i, j) is the share of i's rays that reach j's front; a back face or the open scene takes
+// the rest. Each row sums to one less the escaped and back-face shares *by construction*, so a
+// closed scene conserves light exactly whatever the occluders (a uniform furnace stays uniform to
+// rounding), and the cost is rays at Embree's rate rather than cubature. The price is noise, per row
+// about 1/sqrt(raysPerPatch) of each entry, and no reciprocity. `--form-factors rays`.
+//
+// Small bright sources are where that noise hurts (a patch's rays rarely find the lamp, and direct
+// light is most of what it receives): the columns of the patches marked in `analyticColumns` are
+// computed as computeFormFactors does (cubature, visibility rays), and every other fate of the row's
+// rays (other patches, back faces, the open scene) is scaled by (1 - analytic share) / (1 - rays'
+// share), so that the fates still sum to one.
+#pragma once
+
+#include "solver/radiosity/form_factors.h"
+
+namespace penumbra {
+
+// Same matrix layout as computeFormFactors (dense rows, back-face transfers), marked `sampled`.
+FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings,
+                                 const std::vector<char>& analyticColumns = {});
+
+}  // namespace penumbra
