@@ -11,13 +11,78 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
     const size_t n = p.size();
     const auto around = patchesAround(p);
     const double cosCrease = std::cos(creaseDeg * kPi / 180);
-    // Per (patch, corner): the equation at the vertex, lifted off the patch and pulled a hair into it.
-    CornerValues own(n);
+    // The equation at a vertex is the same for every coplanar patch around it: one patch of each such
+    // group (the lowest index, `sharer`) evaluates it, lifted off its face and pulled a hair into it;
+    // the others read its value. A flat grid's vertex is then evaluated once, not four times.
+    auto sharer = [&](size_t i, int v) {
+        size_t best = i;
+        for (int a : around[size_t(v)])
+            if (size_t(a) < best && !s.specular[size_t(a)] && p.normal[size_t(a)].dot(p.normal[i]) > 1 - 1e-6)
+                best = size_t(a);
+        return best;
+    };
+    auto cornerOf = [&](size_t i, int v) {
+        for (int k = 0; k < p.cornerCount[i]; ++k)
+            if (p.cornerVertex[i][size_t(k)] == v) return k;
+        return -1;
+    };
     std::vector<size_t> specularPatches;
     if (!s.transport.empty())
         for (size_t j = 0; j < n; ++j)
             if (s.specular[j]) specularPatches.push_back(j);
+    // Per (patch, corner) that evaluates: the irradiance from the diffuse patches, and the share of the
+    // mirrors and glass in view (point-to-patch factors).
+    CornerValues diffuseAt(n);
+    std::vector<std::array<double, 4>> specularShareAt(n, {-1, -1, -1, -1});  // -1: not evaluated here
     Progress progress("vertex radiosity", int64_t(n));
+    struct AtVertex {
+        Rgb diffuse;
+        double specularShare;
+    };
+    auto evaluate = [&](size_t i, int k, std::vector<char>& sees) {
+        AtVertex out;
+        const int v = p.cornerVertex[i][size_t(k)];
+        const double lift = 1e-6 + 1e-4 * p.radius[i];
+        const Vec3 x = p.vertices[size_t(v)] + 1e-3 * (p.centroid[i] - p.vertices[size_t(v)]) + lift * p.normal[i];
+        if (F.size() == p.size() && !F.sampled) {
+            std::fill(sees.begin(), sees.end(), 0);
+            for (int a : around[size_t(v)])
+                if (p.normal[size_t(a)].dot(p.normal[i]) > 0.999) {
+                    const float* row = F.row(size_t(a));
+                    for (size_t j = 0; j < n; ++j) sees[j] |= row[j] > 0;
+                }
+            out.diffuse = irradianceAtPoint(p, B, rays, x, p.normal[i], [&](size_t j) { return sees[j] != 0; });
+        } else {
+            out.diffuse = irradianceAtPoint(p, B, rays, x, p.normal[i], [&](size_t j) {
+                return p.normal[j].dot(x - p.centroid[j]) > 0 && p.normal[i].dot(p.centroid[j] - x) > 0;
+            });
+        }
+        out.specularShare = 0;
+        for (size_t j : specularPatches) out.specularShare += visiblePointFactor(p, rays, x, p.normal[i], j);
+        return out;
+    };
+    parallelFor(
+        int64_t(n),
+        [&](int64_t begin, int64_t end) {
+            prepareTracingThread();
+            std::vector<char> sees(n);
+            for (int64_t ii = begin; ii < end; ++ii, progress.update(1)) {
+                const size_t i = size_t(ii);
+                if (s.specular[i]) continue;
+                for (int k = 0; k < p.cornerCount[i]; ++k)
+                    if (sharer(i, p.cornerVertex[i][size_t(k)]) == i) {
+                        const AtVertex at = evaluate(i, k, sees);
+                        diffuseAt[i][size_t(k)] = at.diffuse;
+                        specularShareAt[i][size_t(k)] = at.specularShare;
+                    }
+            }
+        },
+        16);
+    progress.done();
+    // Per (patch, corner): E + rho (diffuse + light through mirrors and glass). The latter is known per
+    // patch (the transport's rays land anywhere on it): a corner takes it in proportion to how much of
+    // the mirrors and glass it sees against the patch as a whole, F(x -> specular) / F(i -> specular).
+    CornerValues own(n);
     parallelFor(
         int64_t(n),
         [&](int64_t begin, int64_t end) {
@@ -26,47 +91,26 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
             for (int64_t ii = begin; ii < end; ++ii) {
                 const size_t i = size_t(ii);
                 for (int k = 0; k < 4; ++k) own[i][size_t(k)] = s.emission[i];
-                progress.update(1);
                 if (s.specular[i]) continue;
-                // Light arriving through mirrors and glass is known per patch (the transport's rays land
-                // anywhere on it): a corner takes it in proportion to how much of the mirrors and glass
-                // it sees against the patch as a whole, F(x -> specular) / F(i -> specular).
                 const Rgb viaSpecular = s.transport.incoming(i, B);
                 double patchShare = 0;
                 if (F.size() == n)
                     for (size_t j : specularPatches) patchShare += F(i, j);
                 for (int k = 0; k < p.cornerCount[i]; ++k) {
                     const int v = p.cornerVertex[i][size_t(k)];
-                    const double lift = 1e-6 + 1e-4 * p.radius[i];
-                    const Vec3 x =
-                        p.vertices[size_t(v)] + 1e-3 * (p.centroid[i] - p.vertices[size_t(v)]) + lift * p.normal[i];
-                    Rgb h;
-                    if (F.size() == p.size() && !F.sampled) {
-                        std::fill(sees.begin(), sees.end(), 0);
-                        for (int a : around[size_t(v)])
-                            if (p.normal[size_t(a)].dot(p.normal[i]) > 0.999) {
-                                const float* row = F.row(size_t(a));
-                                for (size_t j = 0; j < n; ++j) sees[j] |= row[j] > 0;
-                            }
-                        h = irradianceAtPoint(p, B, rays, x, p.normal[i], [&](size_t j) { return sees[j] != 0; });
-                    } else {
-                        h = irradianceAtPoint(p, B, rays, x, p.normal[i], [&](size_t j) {
-                            return p.normal[j].dot(x - p.centroid[j]) > 0 && p.normal[i].dot(p.centroid[j] - x) > 0;
-                        });
-                    }
-                    Rgb specular = Rgb::Zero();
-                    if (patchShare > 0) {
-                        double pointShare = 0;
-                        for (size_t j : specularPatches) pointShare += visiblePointFactor(p, rays, x, p.normal[i], j);
-                        specular = viaSpecular * (pointShare / patchShare);
-                    }
-                    own[i][size_t(k)] = s.emission[i] + s.reflectance[i] * (h + specular);
+                    const size_t a = sharer(i, v);
+                    const size_t c = size_t(cornerOf(a, v));
+                    // Near-coplanarity is not transitive: a sharer that deferred to another is redone here.
+                    const AtVertex at = specularShareAt[a][c] >= 0 ? AtVertex{diffuseAt[a][c], specularShareAt[a][c]}
+                                                                   : evaluate(i, k, sees);
+                    const Rgb specular =
+                        patchShare > 0 ? Rgb(viaSpecular * (at.specularShare / patchShare)) : Rgb::Zero();
+                    own[i][size_t(k)] = s.emission[i] + s.reflectance[i] * (at.diffuse + specular);
                 }
                 if (p.isTriangle(i)) own[i][3] = own[i][2];
             }
         },
         16);
-    progress.done();
     // One value per vertex and normal group: the area-weighted mean of what the patches found there.
     CornerValues out(n);
     for (size_t i = 0; i < n; ++i)
