@@ -2,6 +2,8 @@
 // the threads, and a solve's report holds the counts its geometry implies.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "core/counters.h"
 #include "core/parallel.h"
 #include "fixtures.h"
@@ -25,6 +27,14 @@ TEST(Counters, SumEveryThreadsCountsExactly) {
     setThreadCount(0);
     EXPECT_EQ(counterDescription("test.items"), "items counted by the counter test");
     EXPECT_TRUE(counterDescription("no.such.counter").empty());
+}
+
+TEST(Strata, TheDecorrelatingPermutationVisitsEveryStratumOnce) {
+    for (int count = 1; count <= 400; ++count) {
+        std::vector<int> seen(size_t(count), 0);
+        for (int k = 0; k < count; ++k) ++seen[size_t(decorrelatedStratum(k, count))];
+        ASSERT_EQ(std::count(seen.begin(), seen.end(), 1), count) << count << " strata";
+    }
 }
 
 TEST(Counters, ASolveCountsWhatItsGeometryImplies) {

@@ -116,7 +116,7 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
         int side = 1;
         while (side * side < count) ++side;
         for (int k = 0; k < count; ++k) {
-            const int sa = k % (side * side), sb = (k * 7 + 3) % (side * side);  // decorrelated strata
+            const int sa = k % (side * side), sb = decorrelatedStratum(k % (side * side), side * side);
             const Vec3 from = clipped ? uniformPoint(partA, rng) : stratifiedPoint(p, a, sa, side, rng);
             const Vec3 to = clipped ? uniformPoint(partB, rng) : stratifiedPoint(p, b, sb, side, rng);
             ++rays;

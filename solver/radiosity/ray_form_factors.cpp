@@ -50,7 +50,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 for (int k = 0; k < count; ++k) {
                     // Origins in one stratum of the patch, directions in another (a decorrelated
                     // permutation of the strata), both jittered.
-                    const int a = k, b = (k * 7 + 3) % count;
+                    const int a = k, b = decorrelatedStratum(k, count);
                     const double u1 = ((a % side) + rng.uniform()) / side, u2 = ((a / side) + rng.uniform()) / side;
                     const double d1 = ((b % side) + rng.uniform()) / side, d2 = ((b / side) + rng.uniform()) / side;
                     const Vec3 origin = samplePatchPoint(patches, i, u1, u2, rng.uniform()) + lift * n0;
