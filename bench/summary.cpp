@@ -132,7 +132,10 @@ std::string settingText(const Setting& s) {
                         ? cat("adaptive from ", s.patches, " patches to ", s.refine, ", at most ", s.refineBudget)
                         : cat(s.patches, " patches");
     if (s.visibilityRays != FormFactorSettings{}.visibilityRays) t += cat(", ", s.visibilityRays, " vis. rays");
-    if (s.ffTolerance != CubatureSettings{}.tolerance) t += cat(", FF tol ", s.ffTolerance);
+    if (s.ffRays > 0)
+        t += cat(", ray-cast FF ", s.ffRays, " rays");
+    else if (s.ffTolerance != CubatureSettings{}.tolerance)
+        t += cat(", FF tol ", s.ffTolerance);
     if (s.tolerance != SolverSettings{}.tolerance) t += cat(", tol ", s.tolerance);
     if (s.specularRays != SpecularSettings{}.raysPerPatch && s.method != "path")
         t += cat(", ", s.specularRays, " specular rays");
@@ -159,7 +162,8 @@ void markPareto(std::vector<Row>& rows) {
 
 std::string tradeCsv(const std::vector<Row>& rows) {
     std::string csv =
-        "method,sweep,patches_asked,patches,visibility_rays,ff_tolerance,tolerance,specular_rays,photons,photon_k,"
+        "method,sweep,patches_asked,patches,visibility_rays,ff_tolerance,ff_rays,tolerance,specular_rays,photons,"
+        "photon_k,"
         "gather_rays,spp,"
         "seconds_meshing,seconds_form_factors,seconds_specular,seconds_solve,seconds_photons,seconds_render,"
         "seconds_total,peak_memory_mib,matrix_mib,rays,pooled_l1_blurred,per_pixel_relative_blurred,rmse,"
@@ -168,15 +172,15 @@ std::string tradeCsv(const std::vector<Row>& rows) {
     for (const Row& r : rows) {
         const Setting& s = r.setting;
         const bool path = s.method == "path";
-        csv +=
-            cat(s.method, ",", s.sweep, ",", path ? "" : cat(s.patches), ",", r.patchesMade, ",",
-                path ? "" : cat(s.visibilityRays), ",", path ? "" : cat(s.ffTolerance), ",",
-                path ? "" : cat(s.tolerance), ",", path ? "" : cat(s.specularRays), ",",
-                s.method == "final-gather" ? cat(s.photons) : "", ",", s.method == "final-gather" ? cat(s.photonK) : "",
-                ",", s.method == "final-gather" ? cat(s.gatherRays) : "", ",", s.spp, ",", r.meshing, ",",
-                r.formFactors, ",", r.specular, ",", r.solve, ",", r.photons, ",", r.render, ",", r.total(), ",",
-                r.peakMiB, ",", r.matrixMiB, ",", r.rays, ",", r.imageError, ",", r.imageErrorRaw, ",", r.rmse, ",",
-                opt(r.objectErrorMax), ",", opt(r.objectErrorMean), ",", r.pareto ? 1 : 0, "\n");
+        csv += cat(s.method, ",", s.sweep, ",", path ? "" : cat(s.patches), ",", r.patchesMade, ",",
+                   path ? "" : cat(s.visibilityRays), ",", path ? "" : cat(s.ffTolerance), ",",
+                   path || s.ffRays == 0 ? "" : cat(s.ffRays), ",", path ? "" : cat(s.tolerance), ",",
+                   path ? "" : cat(s.specularRays), ",", s.method == "final-gather" ? cat(s.photons) : "", ",",
+                   s.method == "final-gather" ? cat(s.photonK) : "", ",",
+                   s.method == "final-gather" ? cat(s.gatherRays) : "", ",", s.spp, ",", r.meshing, ",", r.formFactors,
+                   ",", r.specular, ",", r.solve, ",", r.photons, ",", r.render, ",", r.total(), ",", r.peakMiB, ",",
+                   r.matrixMiB, ",", r.rays, ",", r.imageError, ",", r.imageErrorRaw, ",", r.rmse, ",",
+                   opt(r.objectErrorMax), ",", opt(r.objectErrorMean), ",", r.pareto ? 1 : 0, "\n");
     }
     return csv;
 }

@@ -60,6 +60,7 @@ Setting baseSetting(const Baseline& b, const std::string& method, const std::str
             b.patches,
             b.visibilityRays,
             b.ffTolerance,
+            0,  // analytic form factors
             b.tolerance,
             b.specularRays,
             b.photons,
@@ -93,6 +94,7 @@ std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b)
          [](Setting& s, int v) { s.visibilityRays = v; });
     vary(plan, b, both, "ff-tolerance", quick ? std::vector<double>{1e-3} : std::vector<double>{1e-3, 1e-4},
          [](Setting& s, double v) { s.ffTolerance = v; });
+    vary(plan, b, both, "ff-rays", quick ? Ints{1024} : Ints{256, 1024, 4096}, [](Setting& s, int v) { s.ffRays = v; });
     vary(plan, b, both, "tolerance", quick ? std::vector<double>{1e-2} : std::vector<double>{1e-1, 1e-2, 1e-3, 1e-4},
          [](Setting& s, double v) { s.tolerance = v; });
     if (scene.hasSpecular()) {  // photons matter only where there are mirrors or glass
@@ -243,7 +245,13 @@ private:
     Baseline baseline_;
     LogLevel userLevel_;
     std::vector<Setting> plan_;
-    std::map<std::tuple<int, int, double, int, double, double, int, std::string>, std::unique_ptr<SolveRecord>> solves_;
+    // The solves made so far, by what makes one: every setting of the solve, with this tolerance.
+    using SolveKey = std::tuple<int, int, double, int, int, double, double, int, std::string>;
+    static SolveKey keyOf(const Setting& s, double tolerance) {
+        return {s.patches, s.visibilityRays, s.ffTolerance,  s.ffRays, s.specularRays,
+                tolerance, s.refine,         s.refineBudget, s.solver};
+    }
+    std::map<SolveKey, std::unique_ptr<SolveRecord>> solves_;
     PatchSet pathPatches_;
     std::unique_ptr<SceneTracer> pathTracer_;
     double pathSetupSeconds_ = 0;
@@ -291,21 +299,23 @@ const Image& Bench::reference(BenchResult& result) {
 }
 
 const SolveRecord& Bench::solveFor(const Setting& s) {
-    const auto key = std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.specularRays, s.tolerance, s.refine,
-                                     s.refineBudget, s.solver);
+    const auto key = keyOf(s, s.tolerance);
     if (auto it = solves_.find(key); it != solves_.end()) return *it->second;
     // Every tolerance the plan asks of this mesh comes from one matrix: only the solve differs.
     std::vector<double> tolerances{s.tolerance};
     for (const Setting& p : plan_)
         if (p.method != "path" && p.patches == s.patches && p.visibilityRays == s.visibilityRays &&
-            p.ffTolerance == s.ffTolerance && p.specularRays == s.specularRays && p.refine == s.refine &&
-            p.refineBudget == s.refineBudget && p.solver == s.solver && s.solver != "hierarchical" &&
+            p.ffTolerance == s.ffTolerance && p.ffRays == s.ffRays && p.specularRays == s.specularRays &&
+            p.refine == s.refine && p.refineBudget == s.refineBudget && p.solver == s.solver &&
+            s.solver != "hierarchical" &&
             std::find(tolerances.begin(), tolerances.end(), p.tolerance) == tolerances.end())
             tolerances.push_back(p.tolerance);
     SolveOptions o;
     o.meshing.targetPatches = s.patches;
     o.formFactors.visibilityRays = s.visibilityRays;
     o.formFactors.cubature.tolerance = s.ffTolerance;
+    o.formFactors.method = s.ffRays > 0 ? "rays" : "analytic";
+    if (s.ffRays > 0) o.formFactors.raysPerPatch = s.ffRays;
     o.formFactors.seed = options_.seed;
     o.specular.raysPerPatch = s.specularRays;
     o.solverSettings.tolerance = tolerances.front();
@@ -328,8 +338,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
         rec->storageMiB = r.solverName == "hierarchical" ? r.hierarchy.bytes / (1 << 20) : matrixMiB;
         rec->rayCount = rays;
         rec->objectMean = objectMeans(scene_, r.patches, r.solution.B);
-        solves_[std::make_tuple(s.patches, s.visibilityRays, s.ffTolerance, s.specularRays, tolerance, s.refine,
-                                s.refineBudget, s.solver)] = std::move(rec);
+        solves_[keyOf(s, tolerance)] = std::move(rec);
     };
     keep(tolerances.front());
     for (size_t k = 1; k < tolerances.size(); ++k) {

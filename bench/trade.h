@@ -33,6 +33,7 @@ struct Setting {
     std::string method, sweep;
     int patches = 0, visibilityRays = 0;
     double ffTolerance = 0;  // the form-factor cubature's target error
+    int ffRays = 0;          // > 0: ray-cast form factors with this many rays per patch (--form-factors rays)
     double tolerance = 0;    // the solver's
     int specularRays = 0;    // rays per patch through mirrors and glass in the solve
     int64_t photons = 0;
