@@ -38,6 +38,13 @@ ThreadSlots& mySlots() {
     return *mine;
 }
 
+// Counter `id` summed over every thread's slots; the caller holds the registry's lock.
+uint64_t sumLocked(const Registry& r, int id) {
+    uint64_t sum = 0;
+    for (const ThreadSlots& t : r.threads) sum += t.value[id].load(std::memory_order_relaxed);
+    return sum;
+}
+
 }  // namespace
 
 Counter::Counter(const char* name, const char* description) : name_(name), description_(description) {
@@ -57,20 +64,14 @@ void Counter::add(uint64_t n) const {
 uint64_t Counter::value() const {
     Registry& r = registry();
     std::lock_guard<std::mutex> lock(r.mutex);
-    uint64_t sum = 0;
-    for (const ThreadSlots& t : r.threads) sum += t.value[id_].load(std::memory_order_relaxed);
-    return sum;
+    return sumLocked(r, id_);
 }
 
 CounterValues counterValues() {
     Registry& r = registry();
     std::lock_guard<std::mutex> lock(r.mutex);
     CounterValues out;
-    for (const Counter* c : r.counters) {
-        uint64_t sum = 0;
-        for (const ThreadSlots& t : r.threads) sum += t.value[c->id_].load(std::memory_order_relaxed);
-        out[c->name()] = sum;
-    }
+    for (const Counter* c : r.counters) out[c->name()] = sumLocked(r, c->id_);
     return out;
 }
 

@@ -60,8 +60,6 @@ public:
 
     const Scene& scene() const { return scene_; }
     const PatchSet& patches() const { return patches_; }
-    const RayScene& rays() const { return *rays_; }
-    const std::shared_ptr<const RayScene>& sharedRays() const { return rays_; }
 
     // Nearest surface along origin + t dir (dir unit), t > tMin.
     SurfaceHit trace(const Vec3& origin, const Vec3& dir, double tMin = 0) const;
