@@ -47,14 +47,12 @@ struct SolveCli {
     double maxMemoryGiB = 0;
     int viewSpp = 4;
     CLI::Option* patches = nullptr;
-    std::string vertexRadiosity = "gather";
 
     // The options as the solve takes them, with what the command line leaves to depend on others.
     SolveOptions resolved(const CommonOptions& common) const {
         SolveOptions o = options;
         o.formFactors.seed = common.seed;
         o.maxMemoryBytes = maxMemoryGiB * double(1ull << 30);
-        o.gatherVertices = vertexRadiosity == "gather";
         // Adaptive subdivision starts coarse, unless told where to start.
         if (o.refine.tolerance > 0 && patches->count() == 0 && !(o.meshing.patchSize > 0))
             o.meshing.targetPatches = std::min(kRefineStartPatches, o.refine.maxPatches);
@@ -100,16 +98,22 @@ void addSolveOptions(CLI::App* cmd, SolveCli& s) {
         solverHelp += cat(solverHelp.empty() ? "" : "; ", e.name, ": ", e.summary);
     cmd->add_option("--solver", s.options.solver, solverHelp)->capture_default_str();
     cmd->add_option("--form-factors", s.options.formFactors.method,
-                    "analytic: cubature of the point-to-polygon kernel with visibility rays (accurate, the closed "
-                    "forms' mode); rays: the share of each patch's cosine rays that lands on each patch (rows sum "
-                    "to one by construction, at Embree's ray rate; noise about 1/sqrt(--ff-rays))")
+                    cat("auto: analytic while at most ", kAnalyticFacingPairs,
+                        " patch pairs face each other, else rays (the log and report say which and why); "
+                        "analytic: cubature of the point-to-polygon kernel with visibility rays (accurate, the closed "
+                        "forms' mode; cost grows with the pairs); rays: the share of each patch's cosine rays that "
+                        "lands on each patch (rows sum to one by construction, at Embree's ray rate, a sparse matrix; "
+                        "noise about 1/sqrt(--ff-rays))"))
         ->capture_default_str()
-        ->check(CLI::IsMember({"analytic", "rays"}));
-    cmd->add_option("--vertex-radiosity", s.vertexRadiosity,
-                    "Displayed radiosity at the patch corners: gather (the radiosity equation at each vertex) or "
-                    "average (the mean of the patches around it; cheaper, blurs edges and contacts)")
+        ->check(CLI::IsMember({"auto", "analytic", "rays"}));
+    cmd->add_option("--vertex-radiosity", s.options.vertexRadiosity,
+                    "Displayed radiosity at the patch corners: gather (the radiosity equation at each vertex: every "
+                    "patch in view, a ray each), direct (the mean of the patches around it, with the direct light of "
+                    "small sources taken at the vertex itself: shadows and penumbrae at the cost of a ray per source "
+                    "patch) or average (the mean of the patches around it; cheapest, blurs edges, contacts and "
+                    "shadows)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"gather", "average"}));
+        ->check(CLI::IsMember({"gather", "direct", "average"}));
     cmd->add_option("--max-memory", s.maxMemoryGiB, "Memory budget in GiB for the matrix (default: what is available)")
         ->check(kPositive);
 }

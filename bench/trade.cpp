@@ -326,7 +326,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
     SolveResult r = quietly([&] { return solveScene(scene_, o); });
     const double peak = peakMemoryBytes() / (1 << 20);
     const uint64_t rays = r.counters.at("rays.occlusion") + r.counters.at("rays.nearest");
-    const double matrixMiB = double(formFactorMatrixBytes(r.F.size())) / (1 << 20);
+    const double matrixMiB = double(r.F.bytes()) / (1 << 20);
     auto keep = [&](double tolerance) {
         auto rec = std::make_unique<SolveRecord>();
         FormFactorMatrix F = std::move(r.F);  // the copy goes without the matrix

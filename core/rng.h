@@ -28,6 +28,7 @@ enum class Stream : uint64_t {
     CausticRegion = 0xca057,     // emitter samples that find the caustic region, per pixel
     BenchReference = 0x5EF,      // the bench's path-traced reference image
     CastFormFactors = 0xCA57,    // ray-cast form factors, per patch
+    Closure = 0xC105ED,          // the rays that test whether the scene is closed, per patch
 };
 
 class Rng {

@@ -90,10 +90,13 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
           {"specular", r.system.transport.outTarget.size()},
           {"specular_unresolved_share", r.system.transport.unresolvedShare}}},
         {"form_factor_row_sum", {{"min", r.rowSumMin}, {"max", r.rowSumMax}}},
-        {"matrix_mib", double(formFactorMatrixBytes(r.F.size())) / (1 << 20)},
+        {"closed_scene", r.closedScene},
+        {"matrix_mib", double(r.F.bytes()) / (1 << 20)},
         {"peak_memory_mib", peakMemory / (1 << 20)},
     };
     if (!r.solverReason.empty()) report["solver"]["chosen_because"] = r.solverReason;
+    if (!r.formFactorMethod.empty()) report["solver"]["form_factors"] = r.formFactorMethod;
+    if (!r.formFactorReason.empty()) report["solver"]["form_factors_chosen_because"] = r.formFactorReason;
     // Every named counter (core/counters.h), as the solve changed it: the one place they are read.
     Json& counters = report["solver"]["counters"];
     counters = Json::object();
@@ -129,7 +132,7 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
         {"seed", o.formFactors.seed},
         {"form_factors", o.formFactors.method},
         {"solver", o.solver},
-        {"vertex_radiosity", o.gatherVertices ? "gather" : "average"},
+        {"vertex_radiosity", o.vertexRadiosity},
         {"max_memory_gib", o.maxMemoryBytes / double(1ull << 30)},
         {"threads", threadCount()},
     };

@@ -68,22 +68,18 @@ bool resetPeakMemory() {
 
 namespace {
 
-constexpr size_t kAutoMatrixPatches = 12000;  // past this the n^2 form factors take minutes
+constexpr size_t kAutoMatrixPatches = 12000;  // past this the n^2 analytic form factors take minutes
 
-// The emitting patches, when they cover less than a tenth of the surface: small bright sources,
-// which cosine rays rarely find, and whose columns ray-cast form factors take analytically. Where
-// light comes from everywhere (a furnace) the rays find it as well as anything else: none.
-std::vector<char> smallSources(const Scene& scene, const PatchSet& patches) {
-    std::vector<char> emits(patches.size(), 0);
-    double emitting = 0, total = 0;
-    for (size_t i = 0; i < patches.size(); ++i) {
-        const Material& m = scene.materialOf(scene.objects[size_t(patches.object[i])]);
-        emits[i] = m.type == MaterialType::Diffuse && m.emits();
-        emitting += emits[i] ? patches.area[i] : 0;
-        total += patches.area[i];
-    }
-    if (!(emitting < 0.1 * total)) return {};
-    return emits;
+constexpr int kClosureRays = 16;  // per patch, for sceneClosure
+
+bool castsFormFactors(const SolveOptions& o) { return o.formFactors.method == "rays"; }
+
+// Bytes the matrix of n patches takes: n^2 floats analytic; at most one entry per ray cast.
+double matrixBytes(const SolveOptions& o, size_t n) {
+    int side = 1;
+    while (side * side < o.formFactors.raysPerPatch) ++side;
+    return castsFormFactors(o) ? double(sparseFormFactorBytes(n, uint64_t(side * side)))
+                               : double(formFactorMatrixBytes(n));
 }
 
 }  // namespace
@@ -97,8 +93,12 @@ void solveBuiltMatrix(const SolveOptions& options, const StepObserver& observer,
             solveTimer.seconds(), " s");
     r.power = powerBalance(r.system, r.F, r.solution.B);
     Timer vertexTimer;
-    r.corners = options.gatherVertices ? gatherCorners(r.patches, r.system, r.F, r.solution.display, *r.rays)
-                                       : interpolateCorners(r.patches, r.solution.display);
+    if (options.vertexRadiosity == "gather")
+        r.corners = gatherCorners(r.patches, r.system, r.F, r.solution.display, *r.rays);
+    else if (options.vertexRadiosity == "direct")
+        r.corners = directCorners(r.patches, r.system, r.F, r.solution.display, *r.rays);
+    else
+        r.corners = interpolateCorners(r.patches, r.solution.display);
     r.secondsVertices += vertexTimer.seconds();
 }
 
@@ -109,27 +109,41 @@ namespace {
 void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObserver& observer, SolveResult& r) {
     const size_t n = r.patches.size();
     const double budget = options.maxMemoryBytes > 0 ? options.maxMemoryBytes : availableMemoryBytes();
-    const double need = double(formFactorMatrixBytes(n)) + 400.0 * double(n);
+    const double need = matrixBytes(options, n) + 400.0 * double(n);
     if (budget > 0 && need > budget) {
-        const size_t fit = size_t(std::sqrt(budget / sizeof(float)));
+        const size_t fit =
+            castsFormFactors(options) ? size_t(double(n) * budget / need) : size_t(std::sqrt(budget / sizeof(float)));
         throw Error(cat("the form-factor matrix of ", n, " patches needs ", need / (1 << 20), " MiB, more than the ",
                         budget / (1 << 20), " MiB allowed (--max-memory): about ", fit,
                         " patches fit; lower --patches or raise --max-memory"));
     }
-    logInfo("form-factor matrix: ", n, " x ", n, " floats, ", double(formFactorMatrixBytes(n)) / (1 << 20), " MiB");
+    if (castsFormFactors(options))
+        logInfo("form-factor matrix: ", n, " sparse rows, at most ", matrixBytes(options, n) / (1 << 20), " MiB");
+    else
+        logInfo("form-factor matrix: ", n, " x ", n, " floats, ", matrixBytes(options, n) / (1 << 20), " MiB");
 
     Timer ffTimer;
     r.F = FormFactorMatrix();  // the previous round's matrix goes before the next one is made
     r.rays = buildRayScene(scene, r.patches);
-    r.F = options.formFactors.method == "rays"
-              ? castFormFactors(r.patches, *r.rays, options.formFactors, smallSources(scene, r.patches))
-              : computeFormFactors(r.patches, *r.rays, options.formFactors);
-    r.secondsFormFactors += ffTimer.seconds();
-    const std::vector<double> rows = rowSums(r.F);
+    r.system = buildSystem(scene, r.patches);
+    r.F = castsFormFactors(options) ? castFormFactors(r.patches, *r.rays, options.formFactors, smallSources(r.system))
+                                    : computeFormFactors(r.patches, *r.rays, options.formFactors);
+    std::vector<double> rows = rowSums(r.F);
     r.rowSumMin = n ? *std::min_element(rows.begin(), rows.end()) : 0;
     r.rowSumMax = n ? *std::max_element(rows.begin(), rows.end()) : 0;
+    // Ray-cast rows sum to one in a closed scene by construction; the analytic ones within their
+    // cubature and visibility sampling, and are scaled to it (sceneClosure).
+    r.closedScene = sceneClosure(r.patches, *r.rays, kClosureRays, options.formFactors.seed).sealed;
+    if (r.closedScene && !castsFormFactors(options)) {
+        const double left = balanceClosedScene(r.F, r.patches.area);
+        rows = rowSums(r.F);
+        logInfo(
+            "closed scene: the analytic form factors balanced to land all of every row's light, reciprocity "
+            "kept (front-face row sums were within ",
+            std::max(r.rowSumMax - 1, 1 - r.rowSumMin), " of one; all fates now within ", left, ")");
+    }
+    r.secondsFormFactors += ffTimer.seconds();
 
-    r.system = buildSystem(scene, r.patches);
     if (scene.hasSpecular()) {
         const SceneTracer tracer(scene, r.patches, r.rays);
         SpecularSettings specular = options.specular;
@@ -186,6 +200,9 @@ void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveRes
         settings.minArea = h * h;
     }
     const std::shared_ptr<const RayScene> rootRays = buildRayScene(scene, roots);
+    const Closure closure = sceneClosure(roots, *rootRays, kClosureRays, settings.seed);
+    r.closedScene = closure.sealed;
+    settings.closedScene = closure.frontOnly;
     r.secondsMeshing = meshTimer.seconds();
     HierarchyResult h = solveHierarchy(scene, roots, *rootRays, settings);
     r.hierarchy = h.stats;
@@ -202,7 +219,7 @@ void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveRes
             " MiB (the matrix of as many patches: ", double(formFactorMatrixBytes(h.stats.leaves)) / (1 << 20),
             " MiB), ", countersSince(before)["hierarchy.visibility_rays"], " visibility rays");
     // The equation at every vertex costs vertices x leaves: past the matrix's reach, the mean.
-    if (options.gatherVertices)
+    if (options.vertexRadiosity != "average")
         logInfo("hierarchical: displayed vertex radiosity is the mean of the patches around each vertex");
     r.corners = interpolateCorners(r.patches, r.solution.display);
 }
@@ -210,7 +227,7 @@ void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveRes
 // What --solver auto runs, and why.
 std::string chooseSolver(const Scene& scene, const SolveOptions& options, size_t n, std::string& why) {
     const double budget = options.maxMemoryBytes > 0 ? options.maxMemoryBytes : availableMemoryBytes();
-    const double matrix = double(formFactorMatrixBytes(n));
+    const double matrix = matrixBytes(options, n);
     const double mib = double(1 << 20);
     if (scene.hasSpecular()) {
         why = "the scene has mirrors or glass, whose transport the matrix solve carries and the hierarchy does not";
@@ -220,14 +237,15 @@ std::string chooseSolver(const Scene& scene, const SolveOptions& options, size_t
         why = "--refine subdivides the matrix solve's mesh";
         return "gauss-seidel";
     }
-    if (n <= kAutoMatrixPatches && (budget <= 0 || matrix <= 0.5 * budget)) {
+    if ((n <= kAutoMatrixPatches || castsFormFactors(options)) && (budget <= 0 || matrix <= 0.5 * budget)) {
         why = cat("the matrix of ", n, " patches takes ", matrix / mib, " MiB",
                   budget > 0 ? cat(" of ", budget / mib, " MiB available") : "");
         return "gauss-seidel";
     }
     why = cat("the matrix of ", n, " patches would take ", matrix / mib, " MiB",
-              n > kAutoMatrixPatches ? cat(" and its form factors grow as n^2 past ", kAutoMatrixPatches, " patches")
-                                     : " (more than half the memory)",
+              n > kAutoMatrixPatches && !castsFormFactors(options)
+                  ? cat(" and its form factors grow as n^2 past ", kAutoMatrixPatches, " patches")
+                  : " (more than half the memory)",
               "; the hierarchy's links grow about as n");
     return "hierarchical";
 }
@@ -300,18 +318,27 @@ SolveResult solveUncounted(const Scene& scene, const SolveOptions& options, cons
     Timer meshTimer;
     if (r.solverName != "hierarchical") r.patches = meshScene(scene, options.meshing);
     r.secondsMeshing = meshTimer.seconds();
+    SolveOptions matrix = options;
+    if (r.solverName != "hierarchical") {
+        r.formFactorMethod = options.formFactors.method;
+        if (r.formFactorMethod == "auto") {
+            r.formFactorMethod = chooseFormFactors(r.patches, r.formFactorReason);
+            logInfo("form factors: ", r.formFactorMethod, ", because ", r.formFactorReason);
+        }
+        matrix.formFactors.method = r.formFactorMethod;
+    }
     if (r.solverName == "auto") {
-        r.solverName = chooseSolver(scene, options, r.patches.size(), r.solverReason);
+        r.solverName = chooseSolver(scene, matrix, r.patches.size(), r.solverReason);
         logInfo("solver: ", r.solverName, ", because ", r.solverReason);
     }
     if (r.solverName == "hierarchical") {
+        r.formFactorMethod.clear(), r.formFactorReason.clear();  // the hierarchy makes its own links
         if (options.refine.tolerance > 0)
             throw Error(
                 "--refine works on the matrix solve's mesh; the hierarchy refines itself (use one or the other)");
         solveHierarchical(scene, options, r);
         return r;
     }
-    SolveOptions matrix = options;
     matrix.solver = r.solverName;
     solveMatrix(scene, matrix, observer, r);
 

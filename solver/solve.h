@@ -27,9 +27,11 @@ struct SolveOptions {
     HierarchySettings hierarchy;  // --solver hierarchical (its minArea follows from `meshing`)
     int hierarchyRoots = 256;     // the hierarchy's roots: the scene meshed this coarsely
     SolverSettings solverSettings;
-    RefineSettings refine;       // adaptive subdivision after the first solve (off by default)
-    bool gatherVertices = true;  // displayed corner radiosity by the equation at each vertex (else the mean around it)
-    double maxMemoryBytes = 0;   // 0: what the machine has available
+    RefineSettings refine;  // adaptive subdivision after the first solve (off by default)
+    // Displayed corner radiosity (vertex_radiosity.h): gather (the equation at each vertex), direct (the
+    // mean around it with the small sources' direct light at the vertex) or average (the mean around it).
+    std::string vertexRadiosity = "direct";
+    double maxMemoryBytes = 0;  // 0: what the machine has available
 };
 
 // One round of adaptive subdivision: the mesh it solved and what it cost so far.
@@ -44,6 +46,8 @@ struct SolveResult {
     uint64_t sceneFingerprint = 0;  // of the scene file solved (Scene::fingerprint)
     std::string solverName;         // the solver that ran (auto resolved)
     std::string solverReason;       // why auto chose it (empty when named)
+    std::string formFactorMethod;   // the form factors that ran (auto resolved; empty for the hierarchy)
+    std::string formFactorReason;   // why auto chose them (empty when named)
     HierarchyStats hierarchy;       // --solver hierarchical only
     PatchSet patches;
     std::shared_ptr<const RayScene> rays;  // the mesh's one ray scene (buildRayScene), shared by all that trace it
@@ -53,7 +57,8 @@ struct SolveResult {
     CornerValues corners;  // the displayed radiosity at each patch corner
     PowerBalance power;
     double secondsMeshing = 0, secondsFormFactors = 0, secondsSpecular = 0, secondsSolve = 0, secondsVertices = 0;
-    double rowSumMin = 0, rowSumMax = 0;  // front-face row sums (closed scenes: 1 within error)
+    double rowSumMin = 0, rowSumMax = 0;  // front-face row sums as made (closed scenes: 1 within error)
+    bool closedScene = false;             // no ray from any front face leaves the scene (sceneClosure)
     std::vector<RefineRound> refinement;  // empty without --refine; else the first solve, then each round
     CounterValues counters;               // what this solve did: every named counter's change over it
 };

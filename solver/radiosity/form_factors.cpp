@@ -1,8 +1,10 @@
 #include "solver/radiosity/form_factors.h"
 
+#include <algorithm>
 #include <mutex>
 
 #include "core/counters.h"
+#include "core/error.h"
 #include "core/log.h"
 #include "core/parallel.h"
 #include "core/progress.h"
@@ -234,12 +236,108 @@ double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, 
     return vis.fraction * g.front / patches.area[i];
 }
 
+FormFactorMatrix::FormFactorMatrix(size_t n, std::vector<uint64_t> rowStart, std::vector<int32_t> column,
+                                   std::vector<float> value)
+    : n_(n), rowStart_(std::move(rowStart)), column_(std::move(column)), value_(std::move(value)) {
+    if (rowStart_.size() != n + 1 || column_.size() != value_.size() || rowStart_.back() != value_.size())
+        throw Error("FormFactorMatrix: inconsistent sparse rows");
+    if (n == 0) rowStart_.clear();
+}
+
+uint64_t FormFactorMatrix::bytes() const {
+    return isSparse()
+               ? uint64_t(value_.size()) * (sizeof(float) + sizeof(int32_t)) + rowStart_.size() * sizeof(uint64_t)
+               : formFactorMatrixBytes(n_);
+}
+
+float FormFactorMatrix::operator()(size_t i, size_t j) const {
+    if (!isSparse()) return values_(Eigen::Index(i), Eigen::Index(j));
+    const SparseRow r = sparseRow(i);
+    const int32_t* at = std::lower_bound(r.column, r.column + r.count, int32_t(j));
+    return at != r.column + r.count && *at == int32_t(j) ? r.value[at - r.column] : 0.0f;
+}
+
+FormFactorMatrix FormFactorMatrix::transposed() const {
+    std::vector<uint64_t> start(n_ + 1, 0);
+    for (size_t i = 0; i < n_; ++i) forEachInRow(i, [&](size_t j, float) { ++start[j + 1]; });
+    for (size_t j = 0; j < n_; ++j) start[j + 1] += start[j];
+    std::vector<int32_t> column(start.back());
+    std::vector<float> value(start.back());
+    std::vector<uint64_t> next(start.begin(), start.end() - 1);
+    for (size_t i = 0; i < n_; ++i)  // rows in order: each column's entries come out ascending
+        forEachInRow(i, [&](size_t j, float f) {
+            column[next[j]] = int32_t(i);
+            value[next[j]++] = f;
+        });
+    FormFactorMatrix t(n_, std::move(start), std::move(column), std::move(value));
+    t.sampled = sampled;
+    t.reciprocal = reciprocal;
+    return t;
+}
+
+std::vector<double> landingShares(const FormFactorMatrix& F, const std::vector<double>& area) {
+    std::vector<double> share = rowSums(F);
+    for (const BackTransfer& t : F.backTransfers) share[size_t(t.from)] += t.areaFactor / area[size_t(t.from)];
+    return share;
+}
+
+double balanceClosedScene(FormFactorMatrix& F, const std::vector<double>& area) {
+    const size_t n = F.size();
+    if (F.isSparse() || !F.reciprocal) throw Error("balanceClosedScene: needs the dense, reciprocal matrix");
+    std::vector<double> back(n, 0.0), d(n, 1.0), share(n);
+    for (const BackTransfer& t : F.backTransfers) back[size_t(t.from)] += t.areaFactor / area[size_t(t.from)];
+    // Every row's landing share under the scaling d.
+    auto shares = [&] {
+        parallelFor(int64_t(n), [&](int64_t b, int64_t e) {
+            for (int64_t ii = b; ii < e; ++ii) {
+                const size_t i = size_t(ii);
+                const float* row = F.row(i);
+                double s = 0;
+                for (size_t j = 0; j < n; ++j) s += double(row[j]) * d[j];
+                share[i] = d[i] * (s + back[i]);
+            }
+        });
+        double worst = 0;
+        for (size_t i = 0; i < n; ++i) worst = std::max(worst, std::abs(share[i] - 1));
+        return worst;
+    };
+    // Symmetric Sinkhorn: each sweep takes a geometric half step towards every row's target, which
+    // from rows within a percent of one converges in a few sweeps.
+    for (int sweep = 0; sweep < 200 && shares() > 1e-10; ++sweep)
+        for (size_t i = 0; i < n; ++i)
+            if (share[i] > 0) d[i] /= std::sqrt(share[i]);
+    for (size_t i = 0; i < n; ++i)
+        for (size_t j = 0; j < n; ++j)
+            if (const float f = F(i, j); f != 0) F(i, j) = float(d[i] * f * d[j]);
+    for (BackTransfer& t : F.backTransfers) t.areaFactor *= d[size_t(t.from)];
+    std::fill(d.begin(), d.end(), 1.0);
+    return shares();
+}
+
+std::string chooseFormFactors(const PatchSet& p, std::string& why) {
+    // Pairs whose centroids lie in front of each other's plane, counted until there are too many.
+    uint64_t facing = 0;
+    for (size_t a = 0; a < p.size() && facing <= kAnalyticFacingPairs; ++a)
+        for (size_t b = a + 1; b < p.size(); ++b) {
+            const Vec3 d = p.centroid[b] - p.centroid[a];
+            facing += p.normal[a].dot(d) > 0 && p.normal[b].dot(d) < 0;
+        }
+    if (facing <= kAnalyticFacingPairs) {
+        why = cat(facing, " patch pairs face each other, few enough for the analytic cubature (at most ",
+                  kAnalyticFacingPairs, ")");
+        return "analytic";
+    }
+    why = cat("more than ", kAnalyticFacingPairs,
+              " patch pairs face each other: ray casting costs rays in proportion to the patches, the cubature "
+              "grows with the pairs");
+    return "rays";
+}
+
 std::vector<double> rowSums(const FormFactorMatrix& F) {
     std::vector<double> sums(F.size(), 0.0);
     for (size_t i = 0; i < F.size(); ++i) {
-        const float* r = F.row(i);
         double s = 0;
-        for (size_t j = 0; j < F.size(); ++j) s += r[j];
+        F.forEachInRow(i, [&](size_t, float f) { s += f; });
         sums[i] = s;
     }
     return sums;

@@ -19,9 +19,10 @@ namespace penumbra {
 
 struct FormFactorSettings {
     CubatureSettings cubature;
-    int visibilityRays = 4;           // per pair; pairs found partly visible get 4x as many
-    std::string method = "analytic";  // analytic (cubature and visibility rays) or rays (ray_form_factors.h)
-    int raysPerPatch = 1024;          // --form-factors rays: rays cast from each patch
+    int visibilityRays = 4;  // per pair; pairs found partly visible get 4x as many
+    // auto (chooseFormFactors), rays (ray_form_factors.h) or analytic (cubature and visibility rays).
+    std::string method = "auto";
+    int raysPerPatch = 256;  // --form-factors rays: rays cast from each patch
     uint64_t seed = 1;
 };
 
@@ -34,26 +35,71 @@ class FormFactorMatrix {
 public:
     using Dense = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
+    // One row of a sparse matrix: `count` entries, columns ascending.
+    struct SparseRow {
+        const int32_t* column;
+        const float* value;
+        size_t count;
+    };
+
     FormFactorMatrix() = default;
-    explicit FormFactorMatrix(size_t n) : values_(Dense::Zero(Eigen::Index(n), Eigen::Index(n))) {}
-    size_t size() const { return size_t(values_.rows()); }
-    float operator()(size_t i, size_t j) const { return values_(Eigen::Index(i), Eigen::Index(j)); }
+    // Dense and zero: the analytic matrix, every pair a number.
+    explicit FormFactorMatrix(size_t n) : n_(n), values_(Dense::Zero(Eigen::Index(n), Eigen::Index(n))) {}
+    // Sparse rows (compressed, row i's entries at rowStart[i] .. rowStart[i + 1], columns ascending):
+    // the ray-cast matrix, whose row holds no more entries than the rays its patch cast.
+    FormFactorMatrix(size_t n, std::vector<uint64_t> rowStart, std::vector<int32_t> column, std::vector<float> value);
+
+    size_t size() const { return n_; }
+    bool isSparse() const { return !rowStart_.empty(); }
+    // Entries stored: n^2 dense, the nonzeros sparse.
+    uint64_t entries() const { return isSparse() ? uint64_t(value_.size()) : uint64_t(n_) * n_; }
+    uint64_t bytes() const;
+    float operator()(size_t i, size_t j) const;
+    // Dense matrices only.
     float& operator()(size_t i, size_t j) { return values_(Eigen::Index(i), Eigen::Index(j)); }
-    // Row i as contiguous floats: the solvers' sweeps walk rows.
-    const float* row(size_t i) const { return values_.data() + i * size(); }
+    // Row i as contiguous floats (dense matrices only): the solvers' sweeps walk rows.
+    const float* row(size_t i) const { return values_.data() + i * n_; }
+    SparseRow sparseRow(size_t i) const {
+        return {column_.data() + rowStart_[i], value_.data() + rowStart_[i], size_t(rowStart_[i + 1] - rowStart_[i])};
+    }
+    // f(j, F(i, j)) for every stored entry of row i that is not zero, j ascending.
+    template <typename Visit>
+    void forEachInRow(size_t i, const Visit& f) const {
+        if (isSparse()) {
+            const SparseRow r = sparseRow(i);
+            for (size_t k = 0; k < r.count; ++k) f(size_t(r.column[k]), r.value[k]);
+        } else {
+            const float* r = row(i);
+            for (size_t j = 0; j < n_; ++j)
+                if (r[j] != 0) f(j, r[j]);
+        }
+    }
+    // The same matrix with rows and columns swapped, sparse (column access for shooting).
+    FormFactorMatrix transposed() const;
     const Dense& dense() const { return values_; }
 
     std::vector<BackTransfer> backTransfers;
     // Rows estimated by casting rays (ray_form_factors.h): a zero entry may hide a patch that is
     // seen, and reciprocity holds only on average.
     bool sampled = false;
+    // A_i F(i, j) = A_j F(j, i) to float rounding: the analytic matrix (balanced or not). Ray-cast
+    // rows are not.
+    bool reciprocal = true;
 
 private:
+    size_t n_ = 0;
     Dense values_;
+    std::vector<uint64_t> rowStart_;
+    std::vector<int32_t> column_;
+    std::vector<float> value_;
 };
 
 // Bytes the dense matrix of n patches needs.
 inline uint64_t formFactorMatrixBytes(uint64_t n) { return n * n * sizeof(float); }
+// Most bytes the ray-cast (sparse) matrix of n patches with `raysPerPatch` rays each can need.
+inline uint64_t sparseFormFactorBytes(uint64_t n, uint64_t raysPerPatch) {
+    return n * (raysPerPatch * (sizeof(float) + sizeof(int32_t)) + sizeof(uint64_t));
+}
 
 // Where the corners of patch b lie relative to patch a's plane (beyond a tolerance, so corners on
 // the plane, as along a shared edge, count for neither side).
@@ -81,7 +127,26 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& ray
 double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, size_t j,
                        const FormFactorSettings& settings);
 
+// What `auto` form factors run on these patches, and why: the analytic cubature while the patch pairs
+// that face each other are few enough for it to take well under a second (at most
+// kAnalyticFacingPairs: the closed forms' scenes, small meshes), ray casting past that, whose cost
+// grows as n rather than n^2.
+constexpr uint64_t kAnalyticFacingPairs = 250000;
+std::string chooseFormFactors(const PatchSet& patches, std::string& why);
+
 // The row sums sum_j F(i, j) (front faces only), in double.
 std::vector<double> rowSums(const FormFactorMatrix& F);
+
+// Each row's share of light that lands anywhere, front or back face: the row sum plus what the row
+// sends to back faces (`area` the patch areas, m^2).
+std::vector<double> landingShares(const FormFactorMatrix& F, const std::vector<double>& area);
+
+// For a closed scene (sceneClosure: no light leaves it), a reciprocal matrix made to land all of every
+// row's light: F(i, j) <- d_i F(i, j) d_j and patch i's back-face transfers times d_i, with d solving
+// d_i (sum_j F(i, j) d_j + back_i) = 1 (Sinkhorn's balancing, symmetric so that A_i F(i, j) stays
+// A_j F(j, i)). Rows then sum to one, which the furnace needs, and so does every column's power,
+// which the power balance needs: scaling rows alone would give the first and lose the second.
+// Returns the largest |landing share - 1| left (float rounding, about 1e-7).
+double balanceClosedScene(FormFactorMatrix& F, const std::vector<double>& area);
 
 }  // namespace penumbra

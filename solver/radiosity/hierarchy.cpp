@@ -242,6 +242,30 @@ private:
         linkStart_.assign(nodes_.size() + 1, 0);
         for (int r : links_.receiver) ++linkStart_[size_t(r) + 1];
         for (size_t i = 0; i < nodes_.size(); ++i) linkStart_[i + 1] += linkStart_[i];
+        closeRows();
+    }
+
+    // Per leaf, the form factors of the links that serve it (its own and its ancestors'): the row sum
+    // the hierarchy gives it. In a closed scene that is one; each leaf's gathered light is scaled by
+    // the inverse. Children come after their parents, so one pass in element order sums down the tree.
+    void closeRows() {
+        const size_t n = nodes_.size();
+        std::vector<double> sum(n, 0.0);
+        for (size_t i = 0; i < n; ++i) {
+            for (size_t l = linkStart_[i]; l < linkStart_[i + 1]; ++l) sum[i] += double(links_.F[l]);
+            if (parent_[i] >= 0) sum[i] += sum[size_t(parent_[i])];
+        }
+        scale_.assign(n, 1.0);
+        stats_.leafSumMin = 1e300, stats_.leafSumMax = 0;
+        for (size_t i = 0; i < n; ++i) {
+            if (firstChild_[i] >= 0) continue;
+            stats_.leafSumMin = std::min(stats_.leafSumMin, sum[i]);
+            stats_.leafSumMax = std::max(stats_.leafSumMax, sum[i]);
+            if (settings_.closedScene && sum[i] > 0) scale_[i] = 1 / sum[i];
+        }
+        if (settings_.closedScene)
+            logDebug("hierarchy: closed scene: the leaves' link sums ", stats_.leafSumMin, " .. ", stats_.leafSumMax,
+                     " scaled to one");
     }
 
     size_t leafCount() const { return size_t(std::count(firstChild_.begin(), firstChild_.end(), -1)); }
@@ -249,9 +273,9 @@ private:
     // Irradiance pushed down from the ancestors plus the element's own; B pulled up as area means.
     Rgb pushPull(int i, const Rgb& down, std::vector<Rgb>& next) {
         const Rgb total = down + H_[size_t(i)];
-        total_[size_t(i)] = total;
         const int c0 = firstChild_[size_t(i)];
-        if (c0 < 0) return next[size_t(i)] = E_[size_t(i)] + rho_[size_t(i)] * total;
+        total_[size_t(i)] = c0 < 0 ? Rgb(scale_[size_t(i)] * total) : total;
+        if (c0 < 0) return next[size_t(i)] = E_[size_t(i)] + rho_[size_t(i)] * total_[size_t(i)];
         Rgb sum = Rgb::Zero();
         for (int c = c0; c < c0 + 4; ++c) sum += nodes_.area[size_t(c)] * pushPull(c, total, next);
         return next[size_t(i)] = sum / nodes_.area[size_t(i)];
@@ -352,7 +376,8 @@ private:
     PatchSet nodes_;  // every element: roots first, then children in fours
     std::vector<int> parent_, firstChild_;
     std::vector<Rgb> rho_, E_, B_, H_, total_;
-    Links links_;  // kept links, by receiver once the form factors are known
+    std::vector<double> scale_;  // per element: what its gathered light is multiplied by (closeRows)
+    Links links_;                // kept links, by receiver once the form factors are known
     std::vector<size_t> linkStart_;
     double power_ = 0, minArea_ = 0;
     HierarchyStats stats_;

@@ -27,6 +27,9 @@ struct HierarchySettings {
     int visibilityRays = 4;       // per link; partly visible links get four times as many
     CubatureSettings cubature{1e-3, 9, 5};
     int maxRounds = 12;  // refine-then-solve rounds
+    // The scene is closed, with no back face in sight (sceneClosure, ray_form_factors.h): each leaf's links, its own
+    // and its ancestors', are scaled to carry all of its light, as every row of a closed scene does.
+    bool closedScene = false;
     SolverSettings solver;
     uint64_t seed = 1;
 };
@@ -34,6 +37,7 @@ struct HierarchySettings {
 struct HierarchyStats {
     size_t roots = 0, elements = 0, leaves = 0, links = 0;
     uint64_t partlyVisibleLinks = 0;
+    double leafSumMin = 0, leafSumMax = 0;  // over the leaves: the form factors of the links that serve each
     int rounds = 0;
     double bytes = 0;  // elements and links as stored
     double secondsLinks = 0, secondsSolve = 0;

@@ -1,6 +1,7 @@
 #include "solver/radiosity/ray_form_factors.h"
 
 #include <algorithm>
+#include <atomic>
 #include <map>
 #include <mutex>
 
@@ -24,8 +25,9 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     std::vector<size_t> analytic;
     for (size_t j = 0; j < analyticColumns.size() && j < n; ++j)
         if (analyticColumns[j]) analytic.push_back(j);
-    FormFactorMatrix F(n);
-    F.sampled = true;
+    std::vector<BackTransfer> back;
+    // Each row's entries (column, value), columns ascending, until they are packed into one matrix.
+    std::vector<std::vector<std::pair<int32_t, float>>> entries(n);
     const double diagonal = n ? patchBounds(patches).diagonal().norm() : 1.0;
     const double lift = 1e-6 * std::max(diagonal, 1e-3);
     int side = 1;
@@ -39,13 +41,17 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             prepareTracingThread();
             std::vector<BackTransfer> myBack;
             std::map<int, int> backHits;
+            // Front-face hits of the row, per patch: kept per thread across chunks (a chunk may be a
+            // few rows, the array n long) and left all zero after each row.
+            static thread_local std::vector<int> hits;
+            if (hits.size() < n) hits.assign(n, 0);
+            std::vector<int32_t> touched;
             for (int64_t ii = begin; ii < end; ++ii, progress.update()) {
                 const size_t i = size_t(ii);
                 Rng rng = streamRng(settings.seed, Stream::CastFormFactors, i);
                 const Vec3 n0 = patches.normal[i];
-                float* row = &F(i, 0);
-                const float share = 1.0f / float(count);
                 backHits.clear();
+                touched.clear();
                 int analyticHits = 0;
                 for (int k = 0; k < count; ++k) {
                     // Origins in one stratum of the patch, directions in another (a decorrelated
@@ -62,42 +68,91 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                         ++backHits[h.patch];
                     else if (j < analyticColumns.size() && analyticColumns[j])
                         ++analyticHits;
-                    else
-                        row[j] += share;
+                    else if (hits[j]++ == 0)
+                        touched.push_back(int32_t(j));
                 }
                 g_castRays.add(uint64_t(count));
                 // The analytic columns, computed as the analytic matrix computes them.
+                std::vector<std::pair<int32_t, float>>& row = entries[i];
                 double exact = 0;
                 for (size_t j : analytic) {
                     const double f = frontFormFactor(patches, rays, i, j, settings);
-                    row[j] = float(f);
+                    if (f > 0) row.push_back({int32_t(j), float(f)});
                     exact += f;
                 }
                 // Scale the rays' other fates so that all fates sum to one; should every ray have met an
                 // analytic column (no other fate to scale), those columns take the whole row.
                 const double rayShare = double(analyticHits) / count;
                 double scale = 1;
-                if (!analytic.empty() && rayShare < 1) {
+                if (!analytic.empty() && rayShare < 1)
                     scale = std::max(0.0, 1 - exact) / (1 - rayShare);
-                    for (size_t j = 0; j < n; ++j)
-                        if (!(j < analyticColumns.size() && analyticColumns[j])) row[j] = float(row[j] * scale);
-                } else if (!analytic.empty() && exact > 0) {
-                    for (size_t j : analytic) row[j] = float(row[j] / exact);
+                else if (!analytic.empty() && exact > 0)
+                    for (auto& e : row) e.second = float(e.second / exact);
+                for (int32_t j : touched) {
+                    row.push_back({j, float(scale * hits[size_t(j)] / count)});
+                    hits[size_t(j)] = 0;
                 }
-                for (const auto& [j, hits] : backHits)
-                    myBack.push_back({int(i), j, scale * patches.area[i] * double(hits) / double(count)});
+                std::sort(row.begin(), row.end());
+                for (const auto& [j, h] : backHits)
+                    myBack.push_back({int(i), j, scale * patches.area[i] * double(h) / double(count)});
             }
             std::lock_guard<std::mutex> lock(backMutex);
-            F.backTransfers.insert(F.backTransfers.end(), myBack.begin(), myBack.end());
+            back.insert(back.end(), myBack.begin(), myBack.end());
         },
         8);
     progress.done();
+    std::vector<uint64_t> start(n + 1, 0);
+    for (size_t i = 0; i < n; ++i) start[i + 1] = start[i] + entries[i].size();
+    std::vector<int32_t> column(start[n]);
+    std::vector<float> value(start[n]);
+    for (size_t i = 0; i < n; ++i) {
+        for (size_t k = 0; k < entries[i].size(); ++k)
+            column[start[i] + k] = entries[i][k].first, value[start[i] + k] = entries[i][k].second;
+        std::vector<std::pair<int32_t, float>>().swap(entries[i]);
+    }
+    FormFactorMatrix F(n, std::move(start), std::move(column), std::move(value));
+    F.sampled = true;
+    F.reciprocal = false;
+    F.backTransfers = std::move(back);
     std::sort(F.backTransfers.begin(), F.backTransfers.end(), [](const BackTransfer& a, const BackTransfer& b) {
         return a.from != b.from ? a.from < b.from : a.to < b.to;
     });
     logInfo("form factors (rays): ", n, " patches, ", count, " rays each, ", uint64_t(count) * n, " rays in ",
-            timer.seconds(), " s");
+            timer.seconds(), " s; ", F.entries(), " entries stored, ", double(F.bytes()) / (1 << 20), " MiB");
     return F;
+}
+
+Closure sceneClosure(const PatchSet& patches, const RayScene& rays, int raysPerPatch, uint64_t seed) {
+    const size_t n = patches.size();
+    const double diagonal = n ? patchBounds(patches).diagonal().norm() : 1.0;
+    const double lift = 1e-6 * std::max(diagonal, 1e-3);
+    std::atomic<bool> open{false}, back{false};
+    parallelFor(
+        int64_t(n),
+        [&](int64_t begin, int64_t end) {
+            prepareTracingThread();
+            for (int64_t ii = begin; ii < end && !open.load(std::memory_order_relaxed); ++ii) {
+                const size_t i = size_t(ii);
+                Rng rng = streamRng(seed, Stream::Closure, i);
+                for (int k = 0; k < raysPerPatch; ++k) {
+                    double u[5];
+                    for (double& x : u) x = rng.uniform();
+                    const Vec3 origin = samplePatchPoint(patches, i, u[0], u[1], u[2]) + lift * patches.normal[i];
+                    const Vec3 dir = cosineDirection(patches.normal[i], u[3], u[4]);
+                    const Hit h = rays.intersect(origin, dir, 0, 1e30, RayView::Patches);
+                    if (h.patch < 0) {
+                        open = true;
+                        break;
+                    }
+                    if (patches.normal[size_t(h.patch)].dot(dir) >= 0) back = true;
+                }
+            }
+        },
+        16);
+    Closure c;
+    c.sealed = n > 0 && !open;
+    c.frontOnly = c.sealed && !back;
+    return c;
 }
 
 }  // namespace penumbra

@@ -22,4 +22,17 @@ namespace penumbra {
 FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings,
                                  const std::vector<char>& analyticColumns = {});
 
+// Whether the scene is closed, by `raysPerPatch` cosine rays from every patch's front face: none may
+// leave the scene (`sealed`), and none may meet a back face either (`frontOnly`; a patch partly
+// covered by a box resting on it sends rays into the box). In a sealed scene every row of the
+// transport, front and back faces together, sums to one, a fact of the geometry; the analytic
+// matrix, whose rows sum to one only within its cubature and visibility sampling, is scaled to it, and
+// so is the hierarchy where no back face is in sight (its links join front faces only). A furnace at
+// rho near one multiplies what is left by 1 / (1 - rho). A ray that slips through a crack between
+// patches finds the scene open, and then nothing is scaled.
+struct Closure {
+    bool sealed = false, frontOnly = false;
+};
+Closure sceneClosure(const PatchSet& patches, const RayScene& rays, int raysPerPatch, uint64_t seed);
+
 }  // namespace penumbra

@@ -71,11 +71,12 @@ SplitChoice chooseSplits(const PatchSet& p, const RadiositySystem& s, const Form
                 Rgb mean = Rgb::Zero();
                 for (int k = 0; k < p.cornerCount[i]; ++k) mean += corners[i][size_t(k)] / double(p.cornerCount[i]);
                 Rgb gathered[5];
-                const float* row = F.row(i);
+                std::vector<char> sees(n, 0);
+                F.forEachInRow(i, [&](size_t j, float) { sees[j] = 1; });
                 const double lift = 1e-6 + 1e-4 * p.radius[i];
                 for (int k = 0; k < count; ++k)
                     gathered[k] = irradianceAtPoint(p, B, rays, points[k] + lift * p.normal[i], p.normal[i],
-                                                    [&](size_t j) { return row[j] > 0; });
+                                                    [&](size_t j) { return sees[j] != 0; });
                 for (int k = 0; k < count; ++k) {
                     const Rgb solved = s.emission[i] + s.reflectance[i] * gathered[k];
                     const int nc = p.cornerCount[i];

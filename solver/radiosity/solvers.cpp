@@ -97,6 +97,9 @@ public:
         }
         meanReflectance /= std::max(totalArea, 1e-300);
         auto unshotPower = [&](size_t i) { return s.area[i] * unshot[i].sum(); };
+        // Without reciprocity (ray-cast rows, rows scaled to a closed scene) what j gathers from a
+        // shooter is the shooter's column, read as a row of the transpose.
+        const FormFactorMatrix columns = F.reciprocal ? FormFactorMatrix() : F.transposed();
         double remaining = 0;
         for (size_t i = 0; i < n; ++i) remaining += unshotPower(i);
         for (int k = 0;; ++k) {
@@ -109,10 +112,9 @@ public:
                 if (unshotPower(best) <= 0) break;
                 B[best] += dB;
                 unshot[best] = Rgb::Zero();
-                if (F.sampled) {
-                    // Ray-cast rows are not reciprocal: what j gathers from `best` is column best.
-                    for (size_t j = 0; j < n; ++j)
-                        if (const float f = F(j, best); f != 0) unshot[j] += s.reflectance[j] * double(f) * dB;
+                if (!F.reciprocal) {
+                    columns.forEachInRow(best,
+                                         [&](size_t j, float f) { unshot[j] += s.reflectance[j] * double(f) * dB; });
                 } else {
                     // Reciprocity, A_j F(j, best) = A_best F(best, j): row best, read contiguously.
                     const float* row = F.row(best);

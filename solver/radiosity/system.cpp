@@ -21,6 +21,18 @@ RadiositySystem buildSystem(const Scene& scene, const PatchSet& patches) {
     return s;
 }
 
+std::vector<char> smallSources(const RadiositySystem& s) {
+    std::vector<char> emits(s.size(), 0);
+    double emitting = 0, total = 0;
+    for (size_t i = 0; i < s.size(); ++i) {
+        emits[i] = !s.specular[i] && (s.emission[i] > 0).any();
+        emitting += emits[i] ? s.area[i] : 0;
+        total += s.area[i];
+    }
+    if (!(emitting < 0.1 * total)) return {};
+    return emits;
+}
+
 ChannelPlanes::ChannelPlanes(const std::vector<Rgb>& B) {
     for (int k = 0; k < 3; ++k) {
         c[k].resize(B.size());
@@ -35,10 +47,21 @@ ChannelPlanes::ChannelPlanes(const std::vector<Rgb>& B) {
 // 1.3x faster but loses a 1e-6 lamp beside a 1e6 one (the twelve-orders test).
 __attribute__((target_clones("arch=haswell", "default"))) Rgb rowIrradiance(const FormFactorMatrix& F, size_t i,
                                                                             const ChannelPlanes& B) {
-    const float* row = F.row(i);
     const double *b0 = B.c[0].data(), *b1 = B.c[1].data(), *b2 = B.c[2].data();
-    const size_t n = F.size();
     double h0 = 0, h1 = 0, h2 = 0;
+    if (F.isSparse()) {
+        const FormFactorMatrix::SparseRow r = F.sparseRow(i);
+        for (size_t k = 0; k < r.count; ++k) {
+            const double f = r.value[k];
+            const size_t j = size_t(r.column[k]);
+            h0 += f * b0[j];
+            h1 += f * b1[j];
+            h2 += f * b2[j];
+        }
+        return Rgb(h0, h1, h2);
+    }
+    const float* row = F.row(i);
+    const size_t n = F.size();
 #pragma omp simd reduction(+ : h0, h1, h2)
     for (size_t j = 0; j < n; ++j) {
         const double f = row[j];

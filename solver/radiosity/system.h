@@ -27,6 +27,12 @@ struct RadiositySystem {
 
 RadiositySystem buildSystem(const Scene& scene, const PatchSet& patches);
 
+// The emitting patches, when they cover less than a tenth of the surface: small bright sources,
+// which cosine rays rarely find, whose columns ray-cast form factors take analytically and whose
+// direct light the display takes at each vertex (vertex_radiosity.h). Where light comes from
+// everywhere (a furnace) the rays find it as well as anything else: none (an empty mask).
+std::vector<char> smallSources(const RadiositySystem& system);
+
 // B as three planar arrays, one per channel: the layout the row kernel streams at full vector width.
 struct ChannelPlanes {
     std::vector<double> c[3];

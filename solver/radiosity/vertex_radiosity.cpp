@@ -5,12 +5,39 @@
 #include "mesh/refine.h"
 
 namespace penumbra {
+namespace {
+
+// One value per vertex and normal group: the area-weighted mean of what the patches around it found
+// there (`own`, per patch and corner); hanging vertices take their coarser edge's.
+CornerValues meanAtVertices(const PatchSet& p, const std::vector<std::vector<int>>& around, const CornerValues& own,
+                            double creaseDeg) {
+    const double cosCrease = std::cos(creaseDeg * kPi / 180);
+    CornerValues out(p.size());
+    for (size_t i = 0; i < p.size(); ++i)
+        for (int k = 0; k < 4; ++k) {
+            const int v = p.cornerVertex[i][size_t(k)];
+            Rgb sum = Rgb::Zero();
+            double weight = 0;
+            for (int j : around[size_t(v)])
+                if (p.normal[size_t(j)].dot(p.normal[i]) >= cosCrease)
+                    for (int c = 0; c < p.cornerCount[size_t(j)]; ++c)
+                        if (p.cornerVertex[size_t(j)][size_t(c)] == v) {
+                            sum += p.area[size_t(j)] * own[size_t(j)][size_t(c)];
+                            weight += p.area[size_t(j)];
+                            break;
+                        }
+            out[i][size_t(k)] = weight > 0 ? Rgb(sum / weight) : own[i][size_t(k)];
+        }
+    joinHangingVertices(p, around, out, creaseDeg);
+    return out;
+}
+
+}  // namespace
 
 CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const FormFactorMatrix& F,
                            const std::vector<Rgb>& B, const RayScene& rays, double creaseDeg) {
     const size_t n = p.size();
     const auto around = patchesAround(p);
-    const double cosCrease = std::cos(creaseDeg * kPi / 180);
     // The equation at a vertex is the same for every coplanar patch around it: one patch of each such
     // group (the lowest index, `sharer`) evaluates it, lifted off its face and pulled a hair into it;
     // the others read its value. A flat grid's vertex is then evaluated once, not four times.
@@ -48,8 +75,7 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
             std::fill(sees.begin(), sees.end(), 0);
             for (int a : around[size_t(v)])
                 if (p.normal[size_t(a)].dot(p.normal[i]) > 0.999) {
-                    const float* row = F.row(size_t(a));
-                    for (size_t j = 0; j < n; ++j) sees[j] |= row[j] > 0;
+                    F.forEachInRow(size_t(a), [&](size_t j, float) { sees[j] = 1; });
                 }
             out.diffuse = irradianceAtPoint(p, B, rays, x, p.normal[i], [&](size_t j) { return sees[j] != 0; });
         } else {
@@ -111,25 +137,44 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
             }
         },
         16);
-    // One value per vertex and normal group: the area-weighted mean of what the patches found there.
-    CornerValues out(n);
-    for (size_t i = 0; i < n; ++i)
-        for (int k = 0; k < 4; ++k) {
-            const int v = p.cornerVertex[i][size_t(k)];
-            Rgb sum = Rgb::Zero();
-            double weight = 0;
-            for (int j : around[size_t(v)])
-                if (p.normal[size_t(j)].dot(p.normal[i]) >= cosCrease)
-                    for (int c = 0; c < p.cornerCount[size_t(j)]; ++c)
-                        if (p.cornerVertex[size_t(j)][size_t(c)] == v) {
-                            sum += p.area[size_t(j)] * own[size_t(j)][size_t(c)];
-                            weight += p.area[size_t(j)];
-                            break;
-                        }
-            out[i][size_t(k)] = weight > 0 ? Rgb(sum / weight) : own[i][size_t(k)];
-        }
-    joinHangingVertices(p, around, out, creaseDeg);
-    return out;
+    return meanAtVertices(p, around, own, creaseDeg);
+}
+
+CornerValues directCorners(const PatchSet& p, const RadiositySystem& s, const FormFactorMatrix& F,
+                           const std::vector<Rgb>& B, const RayScene& rays, double creaseDeg) {
+    const size_t n = p.size();
+    const std::vector<char> small = smallSources(s);
+    std::vector<size_t> sources;
+    for (size_t j = 0; j < small.size(); ++j)
+        if (small[j] && B[j].maxCoeff() > 0) sources.push_back(j);
+    const std::vector<Rgb> H = gatherIrradiance(s, F, B);
+    CornerValues own(n);
+    Progress progress("vertex radiosity", int64_t(n));
+    parallelFor(
+        int64_t(n),
+        [&](int64_t begin, int64_t end) {
+            prepareTracingThread();
+            for (int64_t ii = begin; ii < end; ++ii, progress.update()) {
+                const size_t i = size_t(ii);
+                for (int k = 0; k < 4; ++k) own[i][size_t(k)] = s.emission[i];
+                if (s.specular[i]) continue;
+                // What the patch gathers from elsewhere than the small sources, as the solve found it.
+                Rgb direct = Rgb::Zero();
+                for (size_t j : sources) direct += double(F(i, j)) * B[j];
+                const Rgb rest = H[i] - direct;
+                const double lift = 1e-6 + 1e-4 * p.radius[i];
+                for (int k = 0; k < p.cornerCount[i]; ++k) {
+                    const Vec3& v = p.vertices[size_t(p.cornerVertex[i][size_t(k)])];
+                    const Vec3 x = v + 1e-3 * (p.centroid[i] - v) + lift * p.normal[i];
+                    const Rgb atVertex = irradianceFrom(p, B, rays, x, p.normal[i], sources);
+                    own[i][size_t(k)] = s.emission[i] + s.reflectance[i] * (rest + atVertex).max(0.0);
+                }
+                if (p.isTriangle(i)) own[i][3] = own[i][2];
+            }
+        },
+        16);
+    progress.done();
+    return meanAtVertices(p, patchesAround(p), own, creaseDeg);
 }
 
 }  // namespace penumbra

@@ -37,11 +37,29 @@ Rgb irradianceAtPoint(const PatchSet& p, const std::vector<Rgb>& B, const RaySce
     return h;
 }
 
+// Irradiance at the point x (unit normal n) from the listed patches alone, W/m^2.
+inline Rgb irradianceFrom(const PatchSet& p, const std::vector<Rgb>& B, const RayScene& rays, const Vec3& x,
+                          const Vec3& n, const std::vector<size_t>& sources) {
+    Rgb h = Rgb::Zero();
+    for (size_t j : sources) h += visiblePointFactor(p, rays, x, n, j) * B[j];
+    return h;
+}
+
 // Corner radiosity by the equation at each vertex (averaged over the patches around it within the
 // crease angle, as interpolateCorners does); hanging vertices keep the mean of their coarser edge's
 // ends. `F` limits each vertex to what the patches around it see; an empty or sampled F (the
 // hierarchy; ray-cast rows, whose zeros may hide what is seen) takes every patch in front of it.
 CornerValues gatherCorners(const PatchSet& patches, const RadiositySystem& system, const FormFactorMatrix& F,
+                           const std::vector<Rgb>& B, const RayScene& rays, double creaseDeg = 30);
+
+// Corner radiosity as the mean of the patches around each vertex (interpolateCorners), except for the
+// direct light of the small sources (smallSources, system.h), which is taken at the vertex itself:
+// per patch corner, E + rho (H_i - D_i + D(x)), with D_i the patch's share of that light in the solve
+// and D(x) the point-to-patch factors at the corner with one visibility ray per source patch. A
+// shadow's penumbra and a lamp's fall-off are then drawn at the vertices rather than smeared over
+// the patches; the indirect light, smooth, keeps the patch means. Costs one factor and ray per
+// vertex and source patch; without small sources it is the mean around each vertex.
+CornerValues directCorners(const PatchSet& patches, const RadiositySystem& system, const FormFactorMatrix& F,
                            const std::vector<Rgb>& B, const RayScene& rays, double creaseDeg = 30);
 
 }  // namespace penumbra
