@@ -34,6 +34,35 @@ CornerValues meanAtVertices(const PatchSet& p, const std::vector<std::vector<int
 
 }  // namespace
 
+Rgb directIrradiance(const PatchSet& p, const std::vector<Rgb>& B, const RayScene& rays, const Vec3& x, const Vec3& n,
+                     const std::vector<size_t>& sources, int rayCount) {
+    // Each source's unoccluded irradiance at x, in closed form.
+    thread_local std::vector<Rgb> full;
+    full.resize(sources.size());
+    double total = 0;
+    for (size_t k = 0; k < sources.size(); ++k) {
+        const size_t j = sources[k];
+        const double f = pointPolygonFormFactor(x, n, p.corners[j].data(), p.cornerCount[j]);
+        full[k] = f > 0 ? Rgb(f * B[j]) : Rgb::Zero();
+        total += full[k].sum();
+    }
+    if (!(total > 0)) return Rgb::Zero();
+    // Source k's visible fraction from the centres of a g x g grid on it, g^2 about its share of
+    // rayCount (at least one): exact where x sees all of it or none. (The R2 sequence, tried first,
+    // put 6 of 17 points in the first quarter of one axis: 11% off across a straight shadow edge.)
+    Rgb h = Rgb::Zero();
+    for (size_t k = 0; k < sources.size(); ++k) {
+        if (!(full[k].sum() > 0)) continue;
+        const int g = std::max(1, int(std::lround(std::sqrt(rayCount * full[k].sum() / total))));
+        int seen = 0;
+        for (int a = 0; a < g; ++a)
+            for (int b = 0; b < g; ++b)
+                seen += !rays.occluded(x, p.pointAt(sources[k], (a + 0.5) / g, (b + 0.5) / g), 1e-3);
+        h += full[k] * (double(seen) / (g * g));
+    }
+    return h;
+}
+
 CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const FormFactorMatrix& F,
                            const std::vector<Rgb>& B, const RayScene& rays, double creaseDeg) {
     const size_t n = p.size();
@@ -166,7 +195,7 @@ CornerValues directCorners(const PatchSet& p, const RadiositySystem& s, const Fo
                 for (int k = 0; k < p.cornerCount[i]; ++k) {
                     const Vec3& v = p.vertices[size_t(p.cornerVertex[i][size_t(k)])];
                     const Vec3 x = v + 1e-3 * (p.centroid[i] - v) + lift * p.normal[i];
-                    const Rgb atVertex = irradianceFrom(p, B, rays, x, p.normal[i], sources);
+                    const Rgb atVertex = directIrradiance(p, B, rays, x, p.normal[i], sources);
                     own[i][size_t(k)] = s.emission[i] + s.reflectance[i] * (rest + atVertex).max(0.0);
                 }
                 if (p.isTriangle(i)) own[i][3] = own[i][2];

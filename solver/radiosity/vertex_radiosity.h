@@ -37,13 +37,14 @@ Rgb irradianceAtPoint(const PatchSet& p, const std::vector<Rgb>& B, const RaySce
     return h;
 }
 
-// Irradiance at the point x (unit normal n) from the listed patches alone, W/m^2.
-inline Rgb irradianceFrom(const PatchSet& p, const std::vector<Rgb>& B, const RayScene& rays, const Vec3& x,
-                          const Vec3& n, const std::vector<size_t>& sources) {
-    Rgb h = Rgb::Zero();
-    for (size_t j : sources) h += visiblePointFactor(p, rays, x, n, j) * B[j];
-    return h;
-}
+// Irradiance at the point x (unit normal n) from the listed source patches, W/m^2: the unoccluded
+// point-to-patch factors in closed form, times the visibility that about `rayCount` shadow rays find.
+// The rays go to the sources in proportion to each one's unoccluded share (by brightness), to the
+// centres of a grid on it (no randomness: the display is the same every time), so a point that sees
+// all of them (or none) gets the closed form exactly, and a penumbra is resolved in steps of about
+// 1 / rayCount.
+Rgb directIrradiance(const PatchSet& p, const std::vector<Rgb>& B, const RayScene& rays, const Vec3& x, const Vec3& n,
+                     const std::vector<size_t>& sources, int rayCount = 64);
 
 // Corner radiosity by the equation at each vertex (averaged over the patches around it within the
 // crease angle, as interpolateCorners does); hanging vertices keep the mean of their coarser edge's
