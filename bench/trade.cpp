@@ -60,7 +60,7 @@ Setting baseSetting(const Baseline& b, const std::string& method, const std::str
             b.patches,
             b.visibilityRays,
             b.ffTolerance,
-            0,  // analytic form factors
+            0,  // the default form factors
             b.tolerance,
             b.specularRays,
             b.photons,
@@ -90,11 +90,13 @@ std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b)
     vary(plan, b, both, "default", Ints{0}, [](Setting&, int) {});
     vary(plan, b, both, "patches", quick ? Ints{250, 1000} : Ints{250, 500, 1000, 2000, 4000, 8000, 16000},
          [](Setting& s, int v) { s.patches = v; });
+    // The analytic cubature's own settings (they change nothing of ray-cast form factors).
+    if (!quick) vary(plan, b, both, "analytic", Ints{-1}, [](Setting& s, int v) { s.ffRays = v; });
     vary(plan, b, gather, "visibility-rays", quick ? Ints{1} : Ints{1, 16},
-         [](Setting& s, int v) { s.visibilityRays = v; });
+         [](Setting& s, int v) { s.visibilityRays = v, s.ffRays = -1; });
     vary(plan, b, both, "ff-tolerance", quick ? std::vector<double>{1e-3} : std::vector<double>{1e-3, 1e-4},
-         [](Setting& s, double v) { s.ffTolerance = v; });
-    vary(plan, b, both, "ff-rays", quick ? Ints{1024} : Ints{256, 1024, 4096}, [](Setting& s, int v) { s.ffRays = v; });
+         [](Setting& s, double v) { s.ffTolerance = v, s.ffRays = -1; });
+    vary(plan, b, both, "ff-rays", quick ? Ints{1024} : Ints{64, 1024, 4096}, [](Setting& s, int v) { s.ffRays = v; });
     vary(plan, b, both, "tolerance", quick ? std::vector<double>{1e-2} : std::vector<double>{1e-1, 1e-2, 1e-3, 1e-4},
          [](Setting& s, double v) { s.tolerance = v; });
     if (scene.hasSpecular()) {  // photons matter only where there are mirrors or glass
@@ -314,7 +316,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
     o.meshing.targetPatches = s.patches;
     o.formFactors.visibilityRays = s.visibilityRays;
     o.formFactors.cubature.tolerance = s.ffTolerance;
-    o.formFactors.method = s.ffRays > 0 ? "rays" : "analytic";
+    if (s.ffRays != 0) o.formFactors.method = s.ffRays > 0 ? "rays" : "analytic";
     if (s.ffRays > 0) o.formFactors.raysPerPatch = s.ffRays;
     o.formFactors.seed = options_.seed;
     o.specular.raysPerPatch = s.specularRays;
@@ -375,6 +377,7 @@ Row Bench::runOne(const Setting& s) {
         const SolveRecord& rec = solveFor(s);
         const SolveResult& solved = rec.solved;
         row.patchesMade = int(solved.patches.size());
+        row.formFactorMethod = solved.formFactorMethod;
         row.meshing = solved.secondsMeshing, row.formFactors = solved.secondsFormFactors,
         row.specular = solved.secondsSpecular, row.solve = rec.solveSeconds;
         row.matrixMiB = rec.matrixMiB;
@@ -517,6 +520,7 @@ BenchResult Bench::run() {
             result.gatherSeconds = row.render;
             const SolveRecord& rec = *records.back();
             result.formFactorRays = double(rec.solved.counters.at("form_factors.visibility_rays"));
+            result.formFactorCastRays = double(rec.solved.counters.at("form_factors.cast_rays"));
             result.formFactorSeconds = rec.solved.secondsFormFactors;
         }
         logInfo("bench: [", k + 1, "/", plan_.size(), "] ", cat(s.method, ", ", settingText(s)), ": ", row.total(),

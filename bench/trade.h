@@ -33,9 +33,9 @@ struct Setting {
     std::string method, sweep;
     int patches = 0, visibilityRays = 0;
     double ffTolerance = 0;  // the form-factor cubature's target error
-    int ffRays = 0;          // > 0: ray-cast form factors with this many rays per patch (--form-factors rays)
-    double tolerance = 0;    // the solver's
-    int specularRays = 0;    // rays per patch through mirrors and glass in the solve
+    int ffRays = 0;  // 0: the default form factors (auto); > 0: ray-cast with this many rays per patch; < 0: analytic
+    double tolerance = 0;  // the solver's
+    int specularRays = 0;  // rays per patch through mirrors and glass in the solve
     int64_t photons = 0;
     int photonK = 0, gatherRays = 0, spp = 0;
     double refine = 0;                    // > 0: adaptive subdivision from `patches` to this tolerance
@@ -51,7 +51,8 @@ struct Row {
     double meshing = 0, formFactors = 0, specular = 0, solve = 0, photons = 0, render = 0;
     double total() const { return meshing + formFactors + specular + solve + photons + render; }
     double solveTotal() const { return meshing + formFactors + specular + solve; }
-    double peakMiB = 0;  // peak resident memory during the run's own stages
+    std::string formFactorMethod;  // analytic or rays (empty for the path tracer and the hierarchy)
+    double peakMiB = 0;            // peak resident memory during the run's own stages
     double matrixMiB = 0;
     uint64_t links = 0;        // hierarchical: links kept
     double storageMiB = 0;     // what the solve's light transport is stored in: matrix, or elements and links
@@ -81,7 +82,8 @@ struct BenchResult {
     BandwidthLimit bandwidth;
     std::vector<ThreadScaling> threads;
     // The form-factor and final-gather rates of the default settings, rays per second.
-    double formFactorRays = 0, formFactorSeconds = 0, gatherRays = 0, gatherSeconds = 0;
+    // The default solve's form-factor stage: visibility (occlusion) rays and cast (nearest-hit) rays.
+    double formFactorRays = 0, formFactorCastRays = 0, formFactorSeconds = 0, gatherRays = 0, gatherSeconds = 0;
 };
 
 BenchResult runBench(const BenchOptions& options);

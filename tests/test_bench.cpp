@@ -74,7 +74,7 @@ TEST(BenchSlow, QuickSweepWritesTheTradeAndErrorFallsAsCostRises) {
         if (row.at("method") == "path") path.emplace_back(std::stod(row.at("spp")), error);
         // (The ray-cast form factors' runs are another estimator, cheap and accurate at once: the
         // trade below is the analytic estimator's, coarse and fast against fine and slow.)
-        if (row.at("method") == "final-gather" && row.at("ff_rays").empty())
+        if (row.at("method") == "final-gather" && row.at("form_factors") == "analytic")
             gather.emplace_back(std::stod(row.at("seconds_total")), error);
     }
     // Monte Carlo: 16 times the samples should divide the error by about 4; the reference's own
