@@ -34,6 +34,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     while (side * side < settings.raysPerPatch) ++side;
     const int count = side * side;
     std::mutex backMutex;
+    std::atomic<int64_t> analyticNanos{0};  // thread time in the analytic columns
     Progress progress("form factors (rays)", int64_t(n));
     parallelFor(
         int64_t(n),
@@ -75,11 +76,13 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 // The analytic columns, computed as the analytic matrix computes them.
                 std::vector<std::pair<int32_t, float>>& row = entries[i];
                 double exact = 0;
+                const Timer columns;
                 for (size_t j : analytic) {
                     const double f = frontFormFactor(patches, rays, i, j, settings);
                     if (f > 0) row.push_back({int32_t(j), float(f)});
                     exact += f;
                 }
+                if (!analytic.empty()) analyticNanos += int64_t(columns.seconds() * 1e9);
                 // Scale the rays' other fates so that all fates sum to one; should every ray have met an
                 // analytic column (no other fate to scale), those columns take the whole row.
                 const double rayShare = double(analyticHits) / count;
@@ -118,7 +121,9 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
         return a.from != b.from ? a.from < b.from : a.to < b.to;
     });
     logInfo("form factors (rays): ", n, " patches, ", count, " rays each, ", uint64_t(count) * n, " rays in ",
-            timer.seconds(), " s; ", F.entries(), " entries stored, ", double(F.bytes()) / (1 << 20), " MiB");
+            timer.seconds(), " s; ", F.entries(), " entries stored, ", double(F.bytes()) / (1 << 20), " MiB; ",
+            analytic.size(), " analytic columns (small sources) took ", double(analyticNanos) * 1e-9 / threadCount(),
+            " s of it");
     return F;
 }
 
