@@ -124,7 +124,7 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
 
     Timer ffTimer;
     r.F = FormFactorMatrix();  // the previous round's matrix goes before the next one is made
-    r.rays = buildRayScene(scene, r.patches);
+    if (!r.rays) r.rays = buildRayScene(scene, r.patches);  // else graded with it (contact_grading.h)
     r.system = buildSystem(scene, r.patches);
     r.F = castsFormFactors(options) ? castFormFactors(r.patches, *r.rays, options.formFactors, smallSources(r.system))
                                     : computeFormFactors(r.patches, *r.rays, options.formFactors);
@@ -224,6 +224,34 @@ void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveRes
     r.corners = interpolateCorners(r.patches, r.solution.display);
 }
 
+// Grades r's uniform mesh towards contacts (contact_grading.h), keeping the ray scene it builds on
+// the way. --patches N asks for about N patches in all: while the graded mesh overshoots N by more
+// than a tenth, the uniform mesh under it is asked for N / (graded / asked) patches instead (at most
+// twice more); the closest try is kept.
+void gradeMesh(const Scene& scene, const SolveOptions& options, SolveResult& r) {
+    ContactGrading grading = options.grading;
+    if (!(grading.minArea > 0))
+        grading.minArea = std::accumulate(r.patches.area.begin(), r.patches.area.end(), 0.0) /
+                          double(r.patches.size()) / std::pow(4.0, grading.levels);
+    const size_t uniform = r.patches.size();
+    GradedMesh best = gradeContacts(scene, r.patches, grading);
+    const double target = options.meshing.targetPatches;
+    auto miss = [&](const GradedMesh& g) { return std::abs(double(g.patches.size()) / target - 1); };
+    double asked = target, got = double(best.patches.size());
+    for (int attempt = 0; attempt < 2 && !(options.meshing.patchSize > 0) && got > 1.1 * target; ++attempt) {
+        MeshingOptions again = options.meshing;
+        asked *= target / got;
+        again.targetPatches = std::max(1, int(std::lround(asked)));
+        GradedMesh graded = gradeContacts(scene, meshScene(scene, again), grading);
+        got = double(graded.patches.size());
+        if (miss(graded) < miss(best)) best = std::move(graded);
+    }
+    logInfo("contact grading: ", best.split, " patches near another surface split: ", best.patches.size(),
+            " patches (a uniform mesh of ", uniform, " before)");
+    r.patches = std::move(best.patches);
+    r.rays = std::move(best.rays);
+}
+
 // What --solver auto runs, and why.
 std::string chooseSolver(const Scene& scene, const SolveOptions& options, size_t n, std::string& why) {
     const double budget = options.maxMemoryBytes > 0 ? options.maxMemoryBytes : availableMemoryBytes();
@@ -284,6 +312,10 @@ std::vector<SolveSetting> solveSettings(SolveOptions& o) {
          "light a shadow edge changes, by more than this fraction (e.g. 0.1)",
          1e-6, 10, false, &o.refine.tolerance},
         {"max_patches", "--max-patches", "Patch budget of --refine", 1, 1e8, true, &o.refine.maxPatches},
+        {"grade_contacts", "--grade-contacts",
+         "Split patches that another surface comes closer to than their width, up to this many times, before "
+         "the first solve (0: off)",
+         0, 8, true, &o.grading.levels},
         {"refine_rounds", "--refine-rounds", "Most rounds of --refine", 1, 100, true, &o.refine.maxRounds},
     };
 }
@@ -316,7 +348,10 @@ SolveResult solveUncounted(const Scene& scene, const SolveOptions& options, cons
     }
     r.solverName = options.solver;
     Timer meshTimer;
-    if (r.solverName != "hierarchical") r.patches = meshScene(scene, options.meshing);
+    if (r.solverName != "hierarchical") {
+        r.patches = meshScene(scene, options.meshing);
+        if (options.grading.levels > 0) gradeMesh(scene, options, r);
+    }
     r.secondsMeshing = meshTimer.seconds();
     SolveOptions matrix = options;
     if (r.solverName != "hierarchical") {
@@ -382,6 +417,7 @@ SolveResult solveUncounted(const Scene& scene, const SolveOptions& options, cons
                 " by gradient, ", choice.byShadow, " by shadow edges, ", made - std::min(made, chosen),
                 " more for the 2:1 rule) -> ", finer.size(), " patches");
         r.patches = std::move(finer);
+        r.rays.reset();
         r.secondsMeshing += timer.seconds();
         solveMatrix(scene, matrix, observer, r);
         r.refinement.push_back(

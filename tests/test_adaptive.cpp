@@ -8,6 +8,7 @@
 
 #include "fixtures.h"
 #include "mesh/refine.h"
+#include "solver/contact_grading.h"
 #include "solver/radiosity/vertex_radiosity.h"
 
 namespace penumbra {
@@ -180,4 +181,74 @@ TEST(Refinement, PutsItsPatchesAlongThePenumbraAndKeepsTheClosedFormOutsideIt) {
 }
 
 }  // namespace
+}  // namespace penumbra
+
+namespace penumbra {
+
+TEST(ContactGrading, SplitsThePatchesBesideAContactAndNoOthers) {
+    // A 0.4 m box standing on a 2 m floor, meshed at 0.1 m: the floor patches that touch the box's
+    // footprint (another surface closer than their width) and the box's lowest row split into four,
+    // the floor far from the box and the box's upper rows keep their size.
+    const std::string json = R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5, "emission": 1}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "m", "vertices": [[-1,0,-1],[-1,0,1],[1,0,1],[1,0,-1]]},
+        {"name": "top",   "type": "quad", "material": "m", "vertices": [[-0.2,0.4,-0.2],[-0.2,0.4,0.2],[0.2,0.4,0.2],[0.2,0.4,-0.2]]},
+        {"name": "px",    "type": "quad", "material": "m", "vertices": [[0.2,0,-0.2],[0.2,0.4,-0.2],[0.2,0.4,0.2],[0.2,0,0.2]]},
+        {"name": "nx",    "type": "quad", "material": "m", "vertices": [[-0.2,0,-0.2],[-0.2,0,0.2],[-0.2,0.4,0.2],[-0.2,0.4,-0.2]]},
+        {"name": "pz",    "type": "quad", "material": "m", "vertices": [[-0.2,0,0.2],[0.2,0,0.2],[0.2,0.4,0.2],[-0.2,0.4,0.2]]},
+        {"name": "nz",    "type": "quad", "material": "m", "vertices": [[-0.2,0,-0.2],[-0.2,0.4,-0.2],[0.2,0.4,-0.2],[0.2,0,-0.2]]}]})";
+    const Scene scene = test::sceneFromJson(json);
+    MeshingOptions meshing;
+    meshing.patchSize = 0.1;
+    const PatchSet uniform = meshScene(scene, meshing);
+    ContactGrading grading;
+    grading.levels = 1;
+    const GradedMesh graded = gradeContacts(scene, uniform, grading);
+    ASSERT_GT(graded.split, 0u);
+    EXPECT_EQ(graded.rays, nullptr) << "split patches need a scene of their own";
+    const PatchSet& p = graded.patches;
+    const double whole = 0.01, quarter = whole / 4;
+    int near = 0, far = 0, low = 0, high = 0;
+    for (size_t i = 0; i < p.size(); ++i) {
+        const Vec3& c = p.centroid[i];
+        if (p.object[i] == 0) {
+            // Distance from the centroid to the box's footprint.
+            const double d = std::max(std::abs(c.x()), std::abs(c.z())) - 0.2;
+            if (d > 0 && d < 0.05) {
+                EXPECT_NEAR(p.area[i], quarter, 1e-9) << "floor beside the box " << c.transpose();
+                ++near;
+            }
+            if (d > 0.35) {
+                EXPECT_NEAR(p.area[i], whole, 1e-9) << "floor far from the box " << c.transpose();
+                ++far;
+            }
+        } else if (p.object[i] >= 2) {
+            if (c.y() < 0.05) {
+                EXPECT_NEAR(p.area[i], quarter, 1e-9) << "box side at the floor " << c.transpose();
+                ++low;
+            }
+            if (c.y() > 0.2) {
+                EXPECT_NEAR(p.area[i], whole, 1e-9) << "box side high up " << c.transpose();
+                ++high;
+            }
+        }
+    }
+    EXPECT_GT(near, 0);
+    EXPECT_GT(far, 0);
+    EXPECT_GT(low, 0);
+    EXPECT_GT(high, 0);
+    double before = 0, after = 0;
+    for (double a : uniform.area) before += a;
+    for (double a : p.area) after += a;
+    EXPECT_NEAR(after, before, 1e-9 * before) << "splitting keeps the surface";
+}
+
+TEST(ContactGrading, KeepsAboutTheAskedPatchCount) {
+    SolveOptions o;
+    o.meshing.targetPatches = 1000;
+    o.grading.levels = 1;
+    const SolveResult r = solveScene(test::sceneFromJson(test::sceneFile("cornell-box.json")), o);
+    EXPECT_NEAR(double(r.patches.size()), 1000.0, 150.0) << "--patches N: about N patches in all";
+}
+
 }  // namespace penumbra

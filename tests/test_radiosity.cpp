@@ -117,11 +117,11 @@ INSTANTIATE_TEST_SUITE_P(Solvers, EnergyEveryStep, ::testing::Values("jacobi", "
 // One matrix for all three solvers, so they are compared on exactly the same system.
 class Convergence : public ::testing::Test {
 protected:
-    static void SetUpTestSuite() { box_ = new SolveResult(solve(cornellBox(), 300, "gauss-seidel", 1e-8)); }
+    static void SetUpTestSuite() { box_ = new SolveResult(solve(cornellBox(), 300, "gauss-seidel", 1e-10)); }
     static void TearDownTestSuite() { delete box_; }
     static RadiositySolution run(const std::string& name) {
         SolverSettings settings;
-        settings.tolerance = 1e-8;
+        settings.tolerance = 1e-10;
         settings.maxIterations = 200000;
         return makeSolver(name)->solve(box_->F, box_->system, settings);
     }

@@ -60,7 +60,10 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     const int a = k, b = decorrelatedStratum(k, count);
                     const double u1 = ((a % side) + rng.uniform()) / side, u2 = ((a / side) + rng.uniform()) / side;
                     const double d1 = ((b % side) + rng.uniform()) / side, d2 = ((b / side) + rng.uniform()) / side;
-                    const Vec3 origin = samplePatchPoint(patches, i, u1, u2, rng.uniform()) + lift * n0;
+                    // A hair in from the patch's edge: an origin on the line where two walls meet
+                    // starts on the other wall's plane, and its ray slips out through the seam.
+                    const Vec3 onPatch = samplePatchPoint(patches, i, u1, u2, rng.uniform());
+                    const Vec3 origin = onPatch + 1e-3 * (patches.centroid[i] - onPatch) + lift * n0;
                     const Vec3 dir = cosineDirection(n0, d1, d2);
                     const Hit h = rays.intersect(origin, dir, 0, 1e30, RayView::Patches);
                     if (h.patch < 0) continue;  // out of the scene
@@ -142,7 +145,8 @@ Closure sceneClosure(const PatchSet& patches, const RayScene& rays, int raysPerP
                 for (int k = 0; k < raysPerPatch; ++k) {
                     double u[5];
                     for (double& x : u) x = rng.uniform();
-                    const Vec3 origin = samplePatchPoint(patches, i, u[0], u[1], u[2]) + lift * patches.normal[i];
+                    const Vec3 onPatch = samplePatchPoint(patches, i, u[0], u[1], u[2]);
+                    const Vec3 origin = onPatch + 1e-3 * (patches.centroid[i] - onPatch) + lift * patches.normal[i];
                     const Vec3 dir = cosineDirection(patches.normal[i], u[3], u[4]);
                     const Hit h = rays.intersect(origin, dir, 0, 1e30, RayView::Patches);
                     if (h.patch < 0) {
