@@ -67,6 +67,13 @@ inline uint64_t streamSeed(uint64_t seed, Stream s) { return mixSeed(seed, uint6
 // count: a sample whose two parts (origin and direction, the two ends of a segment) are each
 // stratified, without pairing stratum k of one with stratum k of the other. (A multiplier sharing a
 // factor with count, as 7 does with 49, would visit some strata twice and others never: a bias.)
+// The side of the smallest square grid of strata holding at least `count` samples (1 for count <= 1).
+inline int stratumSide(int count) {
+    int side = 1;
+    while (side * side < count) ++side;
+    return side;
+}
+
 inline int decorrelatedStratum(int k, int count) {
     int m = 7;
     while (std::gcd(m, count) != 1) m += 2;

@@ -3,6 +3,7 @@
 #include "core/counters.h"
 #include "core/parallel.h"
 #include "core/progress.h"
+#include "core/rng.h"
 #include "render/camera.h"
 #include "solver/visibility.h"
 
@@ -15,8 +16,7 @@ Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, con
                    const RadianceFn& radiance) {
     const PinholeCamera cam(camera);
     Image image(camera.width, camera.height);
-    int side = 1;
-    while (side * side < samplesPerPixel) ++side;
+    const int side = stratumSide(samplesPerPixel);
     const int spp = side * side;
     Progress progress(title, camera.height);
     parallelFor(camera.height, [&](int64_t y0, int64_t y1) {

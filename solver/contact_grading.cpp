@@ -51,11 +51,11 @@ GradedMesh gradeContacts(const Scene& scene, PatchSet patches, const ContactGrad
             64);
         if (std::find(split.begin(), split.end(), 1) == split.end()) break;
         const size_t asked = size_t(std::count(split.begin(), split.end(), 1));
-        patches = splitPatches(patches, split);
-        out.split += size_t(std::count(split.begin(), split.end(), 1));
+        patches = splitPatches(patches, split);  // adds to `split` what the 2:1 rule needs
+        const size_t made = size_t(std::count(split.begin(), split.end(), 1));
+        out.split += made;
         logDebug("contact grading, level ", level + 1, ": ", asked, " patches near another surface split (",
-                 size_t(std::count(split.begin(), split.end(), 1)) - asked, " more for the 2:1 rule) -> ",
-                 patches.size(), " patches");
+                 made - asked, " more for the 2:1 rule) -> ", patches.size(), " patches");
     }
     if (out.split == 0) out.rays = rays;
     out.patches = std::move(patches);

@@ -76,8 +76,7 @@ bool castsFormFactors(const SolveOptions& o) { return o.formFactors.method == "r
 
 // Bytes the matrix of n patches takes: n^2 floats analytic; at most one entry per ray cast.
 double matrixBytes(const SolveOptions& o, size_t n) {
-    int side = 1;
-    while (side * side < o.formFactors.raysPerPatch) ++side;
+    const int side = stratumSide(o.formFactors.raysPerPatch);
     return castsFormFactors(o) ? double(sparseFormFactorBytes(n, uint64_t(side * side)))
                                : double(formFactorMatrixBytes(n));
 }

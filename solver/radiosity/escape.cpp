@@ -12,8 +12,7 @@ EscapeEstimate estimateEscapedPower(const SceneTracer& tracer, const std::vector
     const PatchSet& p = tracer.patches();
     PENUMBRA_CHECK_EQ(B.size(), p.size());
     std::vector<Rgb> mean(p.size(), Rgb::Zero()), variance(p.size(), Rgb::Zero());
-    int side = 1;
-    while (side * side < raysPerPatch) ++side;
+    const int side = stratumSide(raysPerPatch);
     const int rays = side * side;
     parallelFor(
         int64_t(p.size()),

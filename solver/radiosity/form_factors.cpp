@@ -115,8 +115,7 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
     if (clipped && (partA.count < 3 || partB.count < 3 || !(partA.area > 0) || !(partB.area > 0))) return {0.0, 0};
     int visible = 0, rays = 0;
     auto cast = [&](int count) {
-        int side = 1;
-        while (side * side < count) ++side;
+        const int side = stratumSide(count);
         for (int k = 0; k < count; ++k) {
             const int sa = k % (side * side), sb = decorrelatedStratum(k % (side * side), side * side);
             const Vec3 from = clipped ? uniformPoint(partA, rng) : stratifiedPoint(p, a, sa, side, rng);
@@ -273,12 +272,6 @@ FormFactorMatrix FormFactorMatrix::transposed() const {
     t.sampled = sampled;
     t.reciprocal = reciprocal;
     return t;
-}
-
-std::vector<double> landingShares(const FormFactorMatrix& F, const std::vector<double>& area) {
-    std::vector<double> share = rowSums(F);
-    for (const BackTransfer& t : F.backTransfers) share[size_t(t.from)] += t.areaFactor / area[size_t(t.from)];
-    return share;
 }
 
 double balanceClosedScene(FormFactorMatrix& F, const std::vector<double>& area) {

@@ -137,10 +137,6 @@ std::string chooseFormFactors(const PatchSet& patches, std::string& why);
 // The row sums sum_j F(i, j) (front faces only), in double.
 std::vector<double> rowSums(const FormFactorMatrix& F);
 
-// Each row's share of light that lands anywhere, front or back face: the row sum plus what the row
-// sends to back faces (`area` the patch areas, m^2).
-std::vector<double> landingShares(const FormFactorMatrix& F, const std::vector<double>& area);
-
 // For a closed scene (sceneClosure: no light leaves it), a reciprocal matrix made to land all of every
 // row's light: F(i, j) <- d_i F(i, j) d_j and patch i's back-face transfers times d_i, with d solving
 // d_i (sum_j F(i, j) d_j + back_i) = 1 (Sinkhorn's balancing, symmetric so that A_i F(i, j) stays

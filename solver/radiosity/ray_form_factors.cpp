@@ -16,6 +16,21 @@
 namespace penumbra {
 namespace {
 const Counter g_castRays("form_factors.cast_rays", "rays cast for ray-cast form factors (--form-factors rays)");
+// How far ray origins are lifted off their patch along its normal: a millionth of the scene's size.
+double originLift(const PatchSet& patches) {
+    const double diagonal = patches.size() ? patchBounds(patches).diagonal().norm() : 1.0;
+    return 1e-6 * std::max(diagonal, 1e-3);
+}
+
+// A ray origin on patch i (samplePatchPoint of u1, u2, u3), lifted off it and pulled a thousandth of
+// the way in from the edge towards the centroid, as stratifiedPoint (form_factors.cpp) keeps its
+// margin: an origin on the line where two walls meet starts on the other wall's plane, and its ray
+// slips out through the seam.
+Vec3 rayOrigin(const PatchSet& patches, size_t i, double u1, double u2, double u3, double lift) {
+    const Vec3 onPatch = samplePatchPoint(patches, i, u1, u2, u3);
+    return onPatch + 1e-3 * (patches.centroid[i] - onPatch) + lift * patches.normal[i];
+}
+
 }  // namespace
 
 FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings,
@@ -28,10 +43,8 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     std::vector<BackTransfer> back;
     // Each row's entries (column, value), columns ascending, until they are packed into one matrix.
     std::vector<std::vector<std::pair<int32_t, float>>> entries(n);
-    const double diagonal = n ? patchBounds(patches).diagonal().norm() : 1.0;
-    const double lift = 1e-6 * std::max(diagonal, 1e-3);
-    int side = 1;
-    while (side * side < settings.raysPerPatch) ++side;
+    const double lift = originLift(patches);
+    const int side = stratumSide(settings.raysPerPatch);
     const int count = side * side;
     std::mutex backMutex;
     std::atomic<int64_t> analyticNanos{0};  // thread time in the analytic columns
@@ -60,10 +73,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     const int a = k, b = decorrelatedStratum(k, count);
                     const double u1 = ((a % side) + rng.uniform()) / side, u2 = ((a / side) + rng.uniform()) / side;
                     const double d1 = ((b % side) + rng.uniform()) / side, d2 = ((b / side) + rng.uniform()) / side;
-                    // A hair in from the patch's edge: an origin on the line where two walls meet
-                    // starts on the other wall's plane, and its ray slips out through the seam.
-                    const Vec3 onPatch = samplePatchPoint(patches, i, u1, u2, rng.uniform());
-                    const Vec3 origin = onPatch + 1e-3 * (patches.centroid[i] - onPatch) + lift * n0;
+                    const Vec3 origin = rayOrigin(patches, i, u1, u2, rng.uniform(), lift);
                     const Vec3 dir = cosineDirection(n0, d1, d2);
                     const Hit h = rays.intersect(origin, dir, 0, 1e30, RayView::Patches);
                     if (h.patch < 0) continue;  // out of the scene
@@ -132,8 +142,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
 
 Closure sceneClosure(const PatchSet& patches, const RayScene& rays, int raysPerPatch, uint64_t seed) {
     const size_t n = patches.size();
-    const double diagonal = n ? patchBounds(patches).diagonal().norm() : 1.0;
-    const double lift = 1e-6 * std::max(diagonal, 1e-3);
+    const double lift = originLift(patches);
     std::atomic<bool> open{false}, back{false};
     parallelFor(
         int64_t(n),
@@ -145,8 +154,7 @@ Closure sceneClosure(const PatchSet& patches, const RayScene& rays, int raysPerP
                 for (int k = 0; k < raysPerPatch; ++k) {
                     double u[5];
                     for (double& x : u) x = rng.uniform();
-                    const Vec3 onPatch = samplePatchPoint(patches, i, u[0], u[1], u[2]);
-                    const Vec3 origin = onPatch + 1e-3 * (patches.centroid[i] - onPatch) + lift * patches.normal[i];
+                    const Vec3 origin = rayOrigin(patches, i, u[0], u[1], u[2], lift);
                     const Vec3 dir = cosineDirection(patches.normal[i], u[3], u[4]);
                     const Hit h = rays.intersect(origin, dir, 0, 1e30, RayView::Patches);
                     if (h.patch < 0) {

@@ -74,8 +74,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
             fates.clear();
             RowResult& row = rows[i];
             Rng rng = streamRng(settings.seed, Stream::SpecularTransport, i);
-            int side = 1;
-            while (side * side < settings.raysPerPatch) ++side;
+            const int side = stratumSide(settings.raysPerPatch);
             for (int r = 0; r < side * side; ++r) {
                 const double u1 = ((r % side) + rng.uniform()) / side, u2 = ((r / side) + rng.uniform()) / side;
                 const Vec3 p = samplePatchPoint(patches, i, u1, u2, rng.uniform());

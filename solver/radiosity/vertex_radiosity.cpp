@@ -32,6 +32,12 @@ CornerValues meanAtVertices(const PatchSet& p, const std::vector<std::vector<int
     return out;
 }
 
+// Where patch i evaluates its corner k: the vertex lifted off the face and pulled a hair into it.
+Vec3 cornerPoint(const PatchSet& p, size_t i, int k) {
+    const Vec3& v = p.vertices[size_t(p.cornerVertex[i][size_t(k)])];
+    return v + 1e-3 * (p.centroid[i] - v) + (1e-6 + 1e-4 * p.radius[i]) * p.normal[i];
+}
+
 }  // namespace
 
 Rgb directIrradiance(const PatchSet& p, const std::vector<Rgb>& B, const RayScene& rays, const Vec3& x, const Vec3& n,
@@ -98,8 +104,7 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
     auto evaluate = [&](size_t i, int k, std::vector<char>& sees) {
         AtVertex out;
         const int v = p.cornerVertex[i][size_t(k)];
-        const double lift = 1e-6 + 1e-4 * p.radius[i];
-        const Vec3 x = p.vertices[size_t(v)] + 1e-3 * (p.centroid[i] - p.vertices[size_t(v)]) + lift * p.normal[i];
+        const Vec3 x = cornerPoint(p, i, k);
         if (F.size() == p.size() && !F.sampled) {
             std::fill(sees.begin(), sees.end(), 0);
             for (int a : around[size_t(v)])
@@ -191,11 +196,8 @@ CornerValues directCorners(const PatchSet& p, const RadiositySystem& s, const Fo
                 Rgb direct = Rgb::Zero();
                 for (size_t j : sources) direct += double(F(i, j)) * B[j];
                 const Rgb rest = H[i] - direct;
-                const double lift = 1e-6 + 1e-4 * p.radius[i];
                 for (int k = 0; k < p.cornerCount[i]; ++k) {
-                    const Vec3& v = p.vertices[size_t(p.cornerVertex[i][size_t(k)])];
-                    const Vec3 x = v + 1e-3 * (p.centroid[i] - v) + lift * p.normal[i];
-                    const Rgb atVertex = directIrradiance(p, B, rays, x, p.normal[i], sources);
+                    const Rgb atVertex = directIrradiance(p, B, rays, cornerPoint(p, i, k), p.normal[i], sources);
                     own[i][size_t(k)] = s.emission[i] + s.reflectance[i] * (rest + atVertex).max(0.0);
                 }
                 if (p.isTriangle(i)) own[i][3] = own[i][2];
