@@ -109,8 +109,8 @@ void addSolveOptions(CLI::App* cmd, SolveCli& s) {
     cmd->add_option("--vertex-radiosity", s.options.vertexRadiosity,
                     "Displayed radiosity at the patch corners: gather (the radiosity equation at each vertex: every "
                     "patch in view, a ray each), direct (the mean of the patches around it, with the direct light of "
-                    "small sources taken at the vertex itself: shadows and penumbrae at the cost of a ray per source "
-                    "patch) or average (the mean of the patches around it; cheapest, blurs edges, contacts and "
+                    "small sources taken at the vertex itself: shadows and penumbrae for about 64 shadow rays per "
+                    "vertex) or average (the mean of the patches around it; cheapest, blurs edges, contacts and "
                     "shadows)")
         ->capture_default_str()
         ->check(CLI::IsMember({"gather", "direct", "average"}));
