@@ -297,3 +297,39 @@ TEST(RayFormFactors, ASmallLampsLightIsExactNotSampled) {
     }
     EXPECT_LT(worst, 5e-3);
 }
+
+TEST(RayFormFactors, AShadowOnALargePatchTakesItsShareOfTheLight) {
+    // The lamp over the floor with the black square between them, the floor in four 1 m patches: each
+    // patch's corner under the lamp, where it sees the lamp best, lies in the square's shadow. A pair's
+    // visibility counted by area (four rays, all of which may miss the shadow) made the lamp's light
+    // on the floor too bright; by the light each ray's floor end receives, it is the mean of the exact
+    // integral below: rho L_e times the lamp's visible part seen from each floor point, on a 100 x 100
+    // grid of floor points and a 16 x 16 grid on the lamp, the shadow found by the square's own
+    // geometry (no ray scene).
+    SolveOptions o;
+    o.meshing.patchSize = 1.0;
+    o.formFactors.method = "rays";
+    o.formFactors.raysPerPatch = 64;
+    o.grading.levels = 0;
+    const SolveResult r = solveScene(test::sceneFromJson(test::lampOverFloor(true)), o);
+    double solved = 0, area = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i)
+        if (r.patches.object[i] == 0) solved += r.patches.area[i] * r.solution.B[i][0], area += r.patches.area[i];
+    solved /= area;
+    const int floorGrid = 100, lampGrid = 16;
+    double exact = 0;
+    for (int a = 0; a < floorGrid; ++a)
+        for (int b = 0; b < floorGrid; ++b) {
+            const Vec3 x(-1 + 2 * (a + 0.5) / floorGrid, -1 + 2 * (b + 0.5) / floorGrid, 0);
+            for (int c = 0; c < lampGrid; ++c)
+                for (int d = 0; d < lampGrid; ++d) {
+                    const Vec3 q(-0.1 + 0.2 * (c + 0.5) / lampGrid, -0.1 + 0.2 * (d + 0.5) / lampGrid, 1);
+                    const Vec3 mid = 0.5 * (x + q);  // where the segment crosses the square's plane z = 0.5
+                    if (std::abs(mid.x()) < 0.2 && std::abs(mid.y()) < 0.2) continue;
+                    const Vec3 v = q - x;
+                    exact += v.z() * v.z() / (kPi * v.squaredNorm() * v.squaredNorm());
+                }
+        }
+    exact *= 0.5 * kPi * 10 * (0.04 / (lampGrid * lampGrid)) / (floorGrid * floorGrid);
+    EXPECT_NEAR(solved, exact, 0.01 * exact);
+}
