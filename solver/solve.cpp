@@ -237,7 +237,11 @@ void gradeMesh(const Scene& scene, const SolveOptions& options, SolveResult& r) 
     const double target = options.meshing.targetPatches;
     auto miss = [&](const GradedMesh& g) { return std::abs(double(g.patches.size()) / target - 1); };
     double asked = target, got = double(best.patches.size());
-    for (int attempt = 0; attempt < 2 && !(options.meshing.patchSize > 0) && got > 1.1 * target; ++attempt) {
+    // A uniform mesh of fewer than two patches per object (the building: 13,346 for 9,553 quads at
+    // --patches 3000) is about as coarse as its objects allow: asking it for fewer coarsens only its
+    // large surfaces (its floors went to one 5 m^2 patch each), so it keeps its size and grows.
+    const bool retry = !(options.meshing.patchSize > 0) && double(uniform) >= 2.0 * double(scene.objects.size());
+    for (int attempt = 0; attempt < 2 && retry && got > 1.1 * target; ++attempt) {
         MeshingOptions again = options.meshing;
         asked *= target / got;
         again.targetPatches = std::max(1, int(std::lround(asked)));

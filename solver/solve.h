@@ -29,9 +29,8 @@ struct SolveOptions {
     int hierarchyRoots = 256;     // the hierarchy's roots: the scene meshed this coarsely
     SolverSettings solverSettings;
     RefineSettings refine;  // adaptive subdivision after the first solve (off by default)
-    // The first mesh split towards contacts (contact_grading.h). Off by default: on cornell-glass it
-    // puts the final gather's mirror ball 5.8% bright (a fault not yet found; docs/form-factors.md).
-    ContactGrading grading{0};
+    // The first mesh split towards contacts, once (contact_grading.h; --grade-contacts 0: off).
+    ContactGrading grading{1};
     // Displayed corner radiosity (vertex_radiosity.h): gather (the equation at each vertex), direct (the
     // mean around it with the small sources' direct light at the vertex) or average (the mean around it).
     std::string vertexRadiosity = "direct";

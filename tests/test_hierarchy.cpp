@@ -30,6 +30,9 @@ TEST(HierarchySlow, ReachesTheMatrixSolvesRadiosityPerObject) {
     SolveOptions accurate;
     accurate.meshing.targetPatches = 1500;
     accurate.formFactors.method = "analytic";
+    // On the uniform mesh, as the hierarchy's leaves: the default mesh graded towards contacts moves
+    // the block faces by up to 3.4% towards the 13,056-patch reference, which the hierarchy does not.
+    accurate.grading.levels = 0;
     const SolveResult matrix = solveScene(test::sceneFromJson(box), accurate);
     const SolveResult hierarchy = test::solve(box, 1500, "hierarchical");
     EXPECT_EQ(hierarchy.solverName, "hierarchical");
