@@ -109,8 +109,9 @@ struct PlaneSides {
 };
 PlaneSides planeSides(const PatchSet& p, size_t a, size_t b);
 
-// Fraction of segments between patches a and b that nothing blocks: `base` stratified rays, then
-// four times as many when the first ones disagree (a shadow boundary crosses the pair). The
+// Fraction of the light between patches a and b that nothing blocks: `base` stratified segments,
+// then four times as many when the first ones disagree (a shadow boundary crosses the pair), each
+// weighted by the point-to-patch factor from its end on the larger patch to the smaller one. The
 // endpoints are lifted off the faces that exchange light: sideA, sideB = +1 front, -1 back. Where
 // a patch straddles the other's plane (`clipped`), the segments start on its facing part alone.
 struct Visibility {
@@ -123,7 +124,8 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
 FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings);
 
 // F(i -> j) from i's front to j's front alone, as computeFormFactors finds it (0 unless each lies in
-// front of the other): visibility rays, then the kernel's cubature over the smaller patch.
+// front of the other): visibility rays (more where the larger patch is wide for the pair's distance,
+// up to 16 times `visibilityRays`), then the kernel's cubature over the smaller patch.
 double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, size_t j,
                        const FormFactorSettings& settings);
 
