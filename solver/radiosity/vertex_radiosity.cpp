@@ -38,6 +38,24 @@ Vec3 cornerPoint(const PatchSet& p, size_t i, int k) {
     return v + 1e-3 * (p.centroid[i] - v) + (1e-6 + 1e-4 * p.radius[i]) * p.normal[i];
 }
 
+// A value at a vertex that depends only on the point and the face's plane is the same for every
+// coplanar patch around it: one patch of each such group (the lowest index) evaluates it, the others
+// read its value. A flat grid's vertex is then evaluated once, not four times.
+size_t sharerOf(const PatchSet& p, const std::vector<char>& specular, const std::vector<std::vector<int>>& around,
+                size_t i, int v) {
+    size_t best = i;
+    for (int a : around[size_t(v)])
+        if (size_t(a) < best && !specular[size_t(a)] && p.normal[size_t(a)].dot(p.normal[i]) > 1 - 1e-6)
+            best = size_t(a);
+    return best;
+}
+
+int cornerOf(const PatchSet& p, size_t i, int v) {
+    for (int k = 0; k < p.cornerCount[i]; ++k)
+        if (p.cornerVertex[i][size_t(k)] == v) return k;
+    return -1;
+}
+
 }  // namespace
 
 Rgb directIrradiance(const PatchSet& p, const std::vector<Rgb>& B, const RayScene& rays, const Vec3& x, const Vec3& n,
@@ -73,21 +91,9 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
                            const std::vector<Rgb>& B, const RayScene& rays, double creaseDeg) {
     const size_t n = p.size();
     const auto around = patchesAround(p);
-    // The equation at a vertex is the same for every coplanar patch around it: one patch of each such
-    // group (the lowest index, `sharer`) evaluates it, lifted off its face and pulled a hair into it;
-    // the others read its value. A flat grid's vertex is then evaluated once, not four times.
-    auto sharer = [&](size_t i, int v) {
-        size_t best = i;
-        for (int a : around[size_t(v)])
-            if (size_t(a) < best && !s.specular[size_t(a)] && p.normal[size_t(a)].dot(p.normal[i]) > 1 - 1e-6)
-                best = size_t(a);
-        return best;
-    };
-    auto cornerOf = [&](size_t i, int v) {
-        for (int k = 0; k < p.cornerCount[i]; ++k)
-            if (p.cornerVertex[i][size_t(k)] == v) return k;
-        return -1;
-    };
+    // The equation at a vertex is evaluated once per coplanar group (sharerOf), lifted off its face
+    // and pulled a hair into it.
+    auto sharer = [&](size_t i, int v) { return sharerOf(p, s.specular, around, i, v); };
     std::vector<size_t> specularPatches;
     if (!s.transport.empty())
         for (size_t j = 0; j < n; ++j)
@@ -159,7 +165,7 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
                 for (int k = 0; k < p.cornerCount[i]; ++k) {
                     const int v = p.cornerVertex[i][size_t(k)];
                     const size_t a = sharer(i, v);
-                    const size_t c = size_t(cornerOf(a, v));
+                    const size_t c = size_t(cornerOf(p, a, v));
                     // Near-coplanarity is not transitive: a sharer that deferred to another is redone here.
                     const AtVertex at = specularShareAt[a][c] >= 0 ? AtVertex{diffuseAt[a][c], specularShareAt[a][c]}
                                                                    : evaluate(i, k, sees);
@@ -182,13 +188,34 @@ CornerValues directCorners(const PatchSet& p, const RadiositySystem& s, const Fo
     for (size_t j = 0; j < small.size(); ++j)
         if (small[j] && B[j].maxCoeff() > 0) sources.push_back(j);
     const std::vector<Rgb> H = gatherIrradiance(s, F, B);
-    CornerValues own(n);
+    const auto around = patchesAround(p);
+    // The small sources' light at each vertex, once per coplanar group (sharerOf).
+    CornerValues directAt(n);
+    std::vector<std::array<char, 4>> evaluated(n, {0, 0, 0, 0});
     Progress progress("vertex radiosity", int64_t(n));
     parallelFor(
         int64_t(n),
         [&](int64_t begin, int64_t end) {
             prepareTracingThread();
             for (int64_t ii = begin; ii < end; ++ii, progress.update()) {
+                const size_t i = size_t(ii);
+                if (s.specular[i]) continue;
+                for (int k = 0; k < p.cornerCount[i]; ++k)
+                    if (sharerOf(p, s.specular, around, i, p.cornerVertex[i][size_t(k)]) == i) {
+                        directAt[i][size_t(k)] =
+                            directIrradiance(p, B, rays, cornerPoint(p, i, k), p.normal[i], sources);
+                        evaluated[i][size_t(k)] = 1;
+                    }
+            }
+        },
+        16);
+    progress.done();
+    CornerValues own(n);
+    parallelFor(
+        int64_t(n),
+        [&](int64_t begin, int64_t end) {
+            prepareTracingThread();
+            for (int64_t ii = begin; ii < end; ++ii) {
                 const size_t i = size_t(ii);
                 for (int k = 0; k < 4; ++k) own[i][size_t(k)] = s.emission[i];
                 if (s.specular[i]) continue;
@@ -197,15 +224,20 @@ CornerValues directCorners(const PatchSet& p, const RadiositySystem& s, const Fo
                 for (size_t j : sources) direct += double(F(i, j)) * B[j];
                 const Rgb rest = H[i] - direct;
                 for (int k = 0; k < p.cornerCount[i]; ++k) {
-                    const Rgb atVertex = directIrradiance(p, B, rays, cornerPoint(p, i, k), p.normal[i], sources);
+                    const int v = p.cornerVertex[i][size_t(k)];
+                    const size_t a = sharerOf(p, s.specular, around, i, v);
+                    const size_t c = size_t(cornerOf(p, a, v));
+                    // Near-coplanarity is not transitive: a sharer that deferred to another is redone here.
+                    const Rgb atVertex = evaluated[a][c]
+                                             ? directAt[a][c]
+                                             : directIrradiance(p, B, rays, cornerPoint(p, i, k), p.normal[i], sources);
                     own[i][size_t(k)] = s.emission[i] + s.reflectance[i] * (rest + atVertex).max(0.0);
                 }
                 if (p.isTriangle(i)) own[i][3] = own[i][2];
             }
         },
         16);
-    progress.done();
-    return meanAtVertices(p, patchesAround(p), own, creaseDeg);
+    return meanAtVertices(p, around, own, creaseDeg);
 }
 
 }  // namespace penumbra
