@@ -1,5 +1,7 @@
 #include "solver/radiosity/vertex_radiosity.h"
 
+#include <functional>
+
 #include "core/parallel.h"
 #include "core/progress.h"
 #include "mesh/refine.h"
@@ -56,6 +58,55 @@ int cornerOf(const PatchSet& p, size_t i, int v) {
     return -1;
 }
 
+// A value of type T at every patch corner, evaluated (in parallel, with a progress bar) once per
+// coplanar group of patches around each vertex (sharerOf); `at` reads it for any patch's corner.
+template <typename T>
+class SharedCorners {
+public:
+    using Evaluate = std::function<T(size_t i, int k)>;  // at patch i's corner k; called from many threads
+    SharedCorners(const PatchSet& p, const std::vector<char>& specular, const std::vector<std::vector<int>>& around,
+                  Evaluate evaluate)
+        : p_(p),
+          specular_(specular),
+          around_(around),
+          evaluate_(std::move(evaluate)),
+          value_(p.size()),
+          done_(p.size(), {0, 0, 0, 0}) {
+        Progress progress("vertex radiosity", int64_t(p.size()));
+        parallelFor(
+            int64_t(p.size()),
+            [&](int64_t begin, int64_t end) {
+                prepareTracingThread();
+                for (int64_t ii = begin; ii < end; ++ii, progress.update()) {
+                    const size_t i = size_t(ii);
+                    if (specular_[i]) continue;
+                    for (int k = 0; k < p_.cornerCount[i]; ++k)
+                        if (sharerOf(p_, specular_, around_, i, p_.cornerVertex[i][size_t(k)]) == i) {
+                            value_[i][size_t(k)] = evaluate_(i, k);
+                            done_[i][size_t(k)] = 1;
+                        }
+                }
+            },
+            16);
+        progress.done();
+    }
+    T at(size_t i, int k) const {
+        const int v = p_.cornerVertex[i][size_t(k)];
+        const size_t a = sharerOf(p_, specular_, around_, i, v);
+        const size_t c = size_t(cornerOf(p_, a, v));
+        // Near-coplanarity is not transitive: a sharer that deferred to another is redone here.
+        return done_[a][c] ? value_[a][c] : evaluate_(i, k);
+    }
+
+private:
+    const PatchSet& p_;
+    const std::vector<char>& specular_;
+    const std::vector<std::vector<int>>& around_;
+    Evaluate evaluate_;
+    std::vector<std::array<T, 4>> value_;
+    std::vector<std::array<char, 4>> done_;
+};
+
 }  // namespace
 
 Rgb directIrradiance(const PatchSet& p, const std::vector<Rgb>& B, const RayScene& rays, const Vec3& x, const Vec3& n,
@@ -91,23 +142,20 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
                            const std::vector<Rgb>& B, const RayScene& rays, double creaseDeg) {
     const size_t n = p.size();
     const auto around = patchesAround(p);
-    // The equation at a vertex is evaluated once per coplanar group (sharerOf), lifted off its face
-    // and pulled a hair into it.
-    auto sharer = [&](size_t i, int v) { return sharerOf(p, s.specular, around, i, v); };
     std::vector<size_t> specularPatches;
     if (!s.transport.empty())
         for (size_t j = 0; j < n; ++j)
             if (s.specular[j]) specularPatches.push_back(j);
-    // Per (patch, corner) that evaluates: the irradiance from the diffuse patches, and the share of the
-    // mirrors and glass in view (point-to-patch factors).
-    CornerValues diffuseAt(n);
-    std::vector<std::array<double, 4>> specularShareAt(n, {-1, -1, -1, -1});  // -1: not evaluated here
-    Progress progress("vertex radiosity", int64_t(n));
+    // Per vertex (lifted off its face and pulled a hair into it), once per coplanar group: the
+    // irradiance from the diffuse patches, and the share of the mirrors and glass in view
+    // (point-to-patch factors).
     struct AtVertex {
         Rgb diffuse;
         double specularShare;
     };
-    auto evaluate = [&](size_t i, int k, std::vector<char>& sees) {
+    const SharedCorners<AtVertex> atVertex(p, s.specular, around, [&](size_t i, int k) {
+        thread_local std::vector<char> sees;
+        sees.resize(n);
         AtVertex out;
         const int v = p.cornerVertex[i][size_t(k)];
         const Vec3 x = cornerPoint(p, i, k);
@@ -126,25 +174,7 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
         out.specularShare = 0;
         for (size_t j : specularPatches) out.specularShare += visiblePointFactor(p, rays, x, p.normal[i], j);
         return out;
-    };
-    parallelFor(
-        int64_t(n),
-        [&](int64_t begin, int64_t end) {
-            prepareTracingThread();
-            std::vector<char> sees(n);
-            for (int64_t ii = begin; ii < end; ++ii, progress.update(1)) {
-                const size_t i = size_t(ii);
-                if (s.specular[i]) continue;
-                for (int k = 0; k < p.cornerCount[i]; ++k)
-                    if (sharer(i, p.cornerVertex[i][size_t(k)]) == i) {
-                        const AtVertex at = evaluate(i, k, sees);
-                        diffuseAt[i][size_t(k)] = at.diffuse;
-                        specularShareAt[i][size_t(k)] = at.specularShare;
-                    }
-            }
-        },
-        16);
-    progress.done();
+    });
     // Per (patch, corner): E + rho (diffuse + light through mirrors and glass). The latter is known per
     // patch (the transport's rays land anywhere on it): a corner takes it in proportion to how much of
     // the mirrors and glass it sees against the patch as a whole, F(x -> specular) / F(i -> specular).
@@ -153,7 +183,6 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
         int64_t(n),
         [&](int64_t begin, int64_t end) {
             prepareTracingThread();
-            std::vector<char> sees(n);
             for (int64_t ii = begin; ii < end; ++ii) {
                 const size_t i = size_t(ii);
                 for (int k = 0; k < 4; ++k) own[i][size_t(k)] = s.emission[i];
@@ -163,12 +192,7 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
                 if (F.size() == n)
                     for (size_t j : specularPatches) patchShare += F(i, j);
                 for (int k = 0; k < p.cornerCount[i]; ++k) {
-                    const int v = p.cornerVertex[i][size_t(k)];
-                    const size_t a = sharer(i, v);
-                    const size_t c = size_t(cornerOf(p, a, v));
-                    // Near-coplanarity is not transitive: a sharer that deferred to another is redone here.
-                    const AtVertex at = specularShareAt[a][c] >= 0 ? AtVertex{diffuseAt[a][c], specularShareAt[a][c]}
-                                                                   : evaluate(i, k, sees);
+                    const AtVertex at = atVertex.at(i, k);
                     const Rgb specular =
                         patchShare > 0 ? Rgb(viaSpecular * (at.specularShare / patchShare)) : Rgb::Zero();
                     own[i][size_t(k)] = s.emission[i] + s.reflectance[i] * (at.diffuse + specular);
@@ -189,27 +213,10 @@ CornerValues directCorners(const PatchSet& p, const RadiositySystem& s, const Fo
         if (small[j] && B[j].maxCoeff() > 0) sources.push_back(j);
     const std::vector<Rgb> H = gatherIrradiance(s, F, B);
     const auto around = patchesAround(p);
-    // The small sources' light at each vertex, once per coplanar group (sharerOf).
-    CornerValues directAt(n);
-    std::vector<std::array<char, 4>> evaluated(n, {0, 0, 0, 0});
-    Progress progress("vertex radiosity", int64_t(n));
-    parallelFor(
-        int64_t(n),
-        [&](int64_t begin, int64_t end) {
-            prepareTracingThread();
-            for (int64_t ii = begin; ii < end; ++ii, progress.update()) {
-                const size_t i = size_t(ii);
-                if (s.specular[i]) continue;
-                for (int k = 0; k < p.cornerCount[i]; ++k)
-                    if (sharerOf(p, s.specular, around, i, p.cornerVertex[i][size_t(k)]) == i) {
-                        directAt[i][size_t(k)] =
-                            directIrradiance(p, B, rays, cornerPoint(p, i, k), p.normal[i], sources);
-                        evaluated[i][size_t(k)] = 1;
-                    }
-            }
-        },
-        16);
-    progress.done();
+    // The small sources' light at each vertex, once per coplanar group.
+    const SharedCorners<Rgb> directAt(p, s.specular, around, [&](size_t i, int k) {
+        return directIrradiance(p, B, rays, cornerPoint(p, i, k), p.normal[i], sources);
+    });
     CornerValues own(n);
     parallelFor(
         int64_t(n),
@@ -224,13 +231,7 @@ CornerValues directCorners(const PatchSet& p, const RadiositySystem& s, const Fo
                 for (size_t j : sources) direct += double(F(i, j)) * B[j];
                 const Rgb rest = H[i] - direct;
                 for (int k = 0; k < p.cornerCount[i]; ++k) {
-                    const int v = p.cornerVertex[i][size_t(k)];
-                    const size_t a = sharerOf(p, s.specular, around, i, v);
-                    const size_t c = size_t(cornerOf(p, a, v));
-                    // Near-coplanarity is not transitive: a sharer that deferred to another is redone here.
-                    const Rgb atVertex = evaluated[a][c]
-                                             ? directAt[a][c]
-                                             : directIrradiance(p, B, rays, cornerPoint(p, i, k), p.normal[i], sources);
+                    const Rgb atVertex = directAt.at(i, k);
                     own[i][size_t(k)] = s.emission[i] + s.reflectance[i] * (rest + atVertex).max(0.0);
                 }
                 if (p.isTriangle(i)) own[i][3] = own[i][2];
