@@ -63,10 +63,6 @@ inline Rng pairRng(uint64_t seed, Stream s, uint64_t a, uint64_t b) {
 // The stream's seed, for code that takes a seed and makes its own generators.
 inline uint64_t streamSeed(uint64_t seed, Stream s) { return mixSeed(seed, uint64_t(s)); }
 
-// Stratum k of `count` sent to another by a fixed permutation, k m + 3 mod count with m coprime to
-// count: a sample whose two parts (origin and direction, the two ends of a segment) are each
-// stratified, without pairing stratum k of one with stratum k of the other. (A multiplier sharing a
-// factor with count, as 7 does with 49, would visit some strata twice and others never: a bias.)
 // The side of the smallest square grid of strata holding at least `count` samples (1 for count <= 1).
 inline int stratumSide(int count) {
     int side = 1;
@@ -74,6 +70,10 @@ inline int stratumSide(int count) {
     return side;
 }
 
+// Stratum k of `count` sent to another by a fixed permutation, k m + 3 mod count with m coprime to
+// count: a sample whose two parts (origin and direction, the two ends of a segment) are each
+// stratified, without pairing stratum k of one with stratum k of the other. (A multiplier sharing a
+// factor with count, as 7 does with 49, would visit some strata twice and others never: a bias.)
 inline int decorrelatedStratum(int k, int count) {
     int m = 7;
     while (std::gcd(m, count) != 1) m += 2;

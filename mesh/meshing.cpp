@@ -266,10 +266,11 @@ double sceneArea(const Scene& scene) {
 }
 
 PatchSet meshScene(const Scene& scene, const MeshingOptions& options) {
+    const double area = sceneArea(scene);
     double h = options.patchSize;
     if (!(h > 0)) {
         if (options.targetPatches < 1) throw Error("--patches must be at least 1");
-        h = std::sqrt(sceneArea(scene) / options.targetPatches);
+        h = std::sqrt(area / options.targetPatches);
     }
     // Small flat lamps (emitters covering under a tenth of the surface, the solve's small sources)
     // have their light taken in closed form by every receiver (solver/radiosity/system.h), at a cost
@@ -277,6 +278,7 @@ PatchSet meshScene(const Scene& scene, const MeshingOptions& options) {
     // along each side: finer lamps add nothing a receiver can see, and the building's 44 lamps, in
     // 176 patches at 107,646 patches in all, took 4.1 s of its 7.4 s of form factors.
     double emitting = 0;
+    size_t lampPatches = 0;
     std::vector<char> lamp(scene.objects.size(), 0);
     for (size_t i = 0; i < scene.objects.size(); ++i) {
         const SceneObject& o = scene.objects[i];
@@ -284,15 +286,11 @@ PatchSet meshScene(const Scene& scene, const MeshingOptions& options) {
         if (m.type != MaterialType::Diffuse || !m.emits()) continue;
         emitting += objectArea(o);
         lamp[i] = o.type == ShapeType::Quad || o.type == ShapeType::Triangle;
-    }
-    size_t lampPatches = 0;
-    for (size_t i = 0; i < scene.objects.size(); ++i)
-        if (lamp[i]) {
-            const SceneObject& o = scene.objects[i];
+        if (lamp[i])
             lampPatches +=
                 (o.type == ShapeType::Quad ? gridQuad(o.vertices, h) : gridTriangle(o.vertices, h)).n_faces();
-        }
-    const bool coarseLamps = emitting < 0.1 * sceneArea(scene) && lampPatches > 64;
+    }
+    const bool coarseLamps = emitting < kSmallSourceShare * area && lampPatches > 64;
     PatchSet patches;
     for (size_t i = 0; i < scene.objects.size(); ++i) {
         const SceneObject& o = scene.objects[i];

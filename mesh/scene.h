@@ -23,6 +23,10 @@ struct Material {
     bool emits() const { return (emission > 0).any(); }
 };
 
+// Emitters covering less than this share of the surface are small sources: the solve takes their
+// light in closed form (solver/radiosity/system.h: smallSources) and the mesher keeps them coarse.
+constexpr double kSmallSourceShare = 0.1;
+
 enum class ShapeType { Quad, Triangle, Mesh, Sphere };
 
 // A polygon soup read from a mesh file, in the file's own units (before transform).

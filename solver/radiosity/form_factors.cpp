@@ -116,11 +116,14 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
     // Each segment counts with the point-to-patch factor from its end on the larger patch to the
     // smaller one: a shadow that falls where that patch sees the other best (a desk under a lamp,
     // the floor under the desk) takes its share of the factor, not of the area.
+    // The weights are needed only where the rays disagree: each segment's end on the larger patch
+    // is kept until then.
     const bool aLarger = p.area[a] >= p.area[b];
     const size_t small = aLarger ? b : a;
     const Vec3& nLarge = aLarger ? na : nb;
+    thread_local std::vector<std::pair<Vec3, bool>> ends;
+    ends.clear();
     int visible = 0, rays = 0;
-    double seen = 0, weights = 0;
     auto cast = [&](int count) {
         const int side = stratumSide(count);
         for (int k = 0; k < count; ++k) {
@@ -129,16 +132,20 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
             const Vec3 to = clipped ? uniformPoint(partB, rng) : stratifiedPoint(p, b, sb, side, rng);
             ++rays;
             const bool open = !scene.occluded(from + liftA, to + liftB);
-            const double w =
-                pointPolygonFormFactor(aLarger ? from : to, nLarge, p.corners[small].data(), p.cornerCount[small]);
             visible += open;
-            weights += w;
-            seen += open ? w : 0;
+            ends.emplace_back(aLarger ? from : to, open);
         }
     };
     cast(base);
     if (visible > 0 && visible < rays) cast(3 * base);
-    if (visible == 0 || visible == rays || !(weights > 0)) return {double(visible) / rays, rays};
+    if (visible == 0 || visible == rays) return {double(visible) / rays, rays};
+    double seen = 0, weights = 0;
+    for (const auto& [x, open] : ends) {
+        const double w = pointPolygonFormFactor(x, nLarge, p.corners[small].data(), p.cornerCount[small]);
+        weights += w;
+        seen += open ? w : 0;
+    }
+    if (!(weights > 0)) return {double(visible) / rays, rays};
     return {seen / weights, rays};
 }
 

@@ -29,7 +29,7 @@ std::vector<char> smallSources(const RadiositySystem& s) {
         emitting += emits[i] ? s.area[i] : 0;
         total += s.area[i];
     }
-    if (!(emitting < 0.1 * total)) return {};
+    if (!(emitting < kSmallSourceShare * total)) return {};
     return emits;
 }
 
