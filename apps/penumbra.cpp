@@ -23,6 +23,7 @@
 #include "render/final_gather.h"
 #include "render/image_metrics.h"
 #include "render/integrators.h"
+#include "render/object_reference.h"
 #include "render/orbit.h"
 #include "render/path_tracer.h"
 #include "render/photon_map.h"
@@ -286,9 +287,70 @@ int runExport(const std::string& dir, const std::string& out, std::string format
     return 0;
 }
 
+struct ReferenceCli {
+    std::string scene, out;
+    ObjectReferenceSettings settings;
+    int patches = 3000;
+};
+
+// Each object's mean radiosity by path tracing, to a stated standard error: what a solve's
+// report.json is measured against (`penumbra compare report.json reference.json`).
+int runReference(ReferenceCli& c, const CommonOptions& common) {
+    const std::string ext = std::filesystem::path(c.out).extension().string();
+    if (ext != ".json") throw Error(cat("--out ", c.out, ": expected a .json file name"));
+    if (c.settings.minSamples > c.settings.maxSamples)
+        throw Error(cat("--min-points ", c.settings.minSamples, " is above --max-points ", c.settings.maxSamples));
+    const Scene scene = loadScene(c.scene);
+    MeshingOptions meshing;
+    meshing.targetPatches = c.patches;
+    const PatchSet patches = meshScene(scene, meshing);
+    const SceneTracer tracer(scene, patches);
+    if (!tracer.hasEmitters()) throw Error(cat(c.scene, ": no object emits light: every radiosity is zero"));
+    c.settings.seed = common.seed;
+    Timer timer;
+    const std::vector<ObjectEstimate> estimates = pathObjectRadiosity(tracer, c.settings);
+    const double seconds = timer.seconds();
+    int64_t points = 0;
+    double worst = 0;
+    for (const ObjectEstimate& e : estimates) {
+        points += e.samples;
+        worst = std::max(worst, e.relativeError);
+    }
+    if (!std::filesystem::path(c.out).parent_path().empty())
+        ensureDirectory(std::filesystem::path(c.out).parent_path().string());
+    writeFileAtomic(c.out, objectReferenceJson(scene, estimates, c.settings, seconds));
+    logInfo("wrote ", c.out, ": ", points, " points on ", scene.objects.size(), " objects in ", seconds,
+            " s, largest standard error ", 100 * worst, "%");
+    return 0;
+}
+
+// Two files of report.json's form: each object's mean radiosity, value over reference.
+int runCompareObjects(const std::string& valueFile, const std::string& referenceFile) {
+    const std::vector<ObjectComparison> rows = compareObjectRadiosity(valueFile, referenceFile);
+    if (rows.empty()) throw Error(cat(valueFile, " and ", referenceFile, ": no lit object in both"));
+    std::printf("%-28s %9s %12s %12s %8s %13s %7s\n", "object", "area m2", "radiosity", "reference", "ratio",
+                "worst channel", "z");
+    double worst = 0, areaWithin = 0, area = 0;
+    std::string worstName;
+    for (const ObjectComparison& r : rows) {
+        std::printf("%-28s %9.4g %12.6g %12.6g %8.4f %12.2f%% %7.2f\n", r.name.c_str(), r.area, r.value.sum(),
+                    r.reference.sum(), r.ratio, 100 * r.worstChannel, r.z);
+        if (std::abs(r.ratio - 1) > worst) {
+            worst = std::abs(r.ratio - 1);
+            worstName = r.name;
+        }
+        area += r.area;
+        if (std::abs(r.ratio - 1) <= 0.01) areaWithin += r.area;
+    }
+    std::printf("%zu objects: worst %s %+.2f%%; %.1f%% of the area within 1%%\n", rows.size(), worstName.c_str(),
+                100 * worst, area > 0 ? 100 * areaWithin / area : 0.0);
+    return 0;
+}
+
 // The project's image measure (pooled L1 after a 5x5 blur) and, given the scene, the same per region.
 int runCompare(const std::string& imageFile, const std::string& referenceFile, const std::string& sceneFile,
                const std::string& cameraJson) {
+    if (std::filesystem::path(imageFile).extension() == ".json") return runCompareObjects(imageFile, referenceFile);
     const Image a = readLinearImage(imageFile), ref = readLinearImage(referenceFile);
     const ImageError raw = compareImages(a, ref), blurred = compareBlurred(a, ref);
     std::printf(
@@ -408,12 +470,38 @@ int main(int argc, char** argv) {
 
     std::string compareImage, compareReference, compareScene, compareCamera;
     CLI::App* compareCmd = app.add_subcommand("compare", "Compare an image with a reference (e.g. a path-traced one)");
-    compareCmd->add_option("image", compareImage, "Image (.exr or .hdr)")->required();
-    compareCmd->add_option("reference", compareReference, "Reference image of the same size")->required();
+    compareCmd->add_option("image", compareImage, "Image (.exr or .hdr), or a report.json")->required();
+    compareCmd
+        ->add_option("reference", compareReference,
+                     "Reference image of the same size, or (for a report.json) a `penumbra reference` file or "
+                     "another report.json: each object's mean radiosity")
+        ->required();
     compareCmd->add_option(
         "--scene", compareScene,
         "The scene both images show: also compare each region (every object seen, their groups, the caustic)");
     compareCmd->add_option("--camera", compareCamera, "With --scene: the camera of the images, if not the scene's");
+
+    ReferenceCli reference;
+    CLI::App* referenceCmd = app.add_subcommand(
+        "reference", "Each object's mean radiosity by path tracing, to a stated noise (a reference for solves)");
+    referenceCmd->add_option("scene", reference.scene, "Scene JSON file")->required();
+    referenceCmd->add_option("--out", reference.out, "Output file (.json, report.json's form)")->required();
+    referenceCmd
+        ->add_option("--error", reference.settings.targetError,
+                     "Sample each object until its standard error is below this share of its mean")
+        ->capture_default_str()
+        ->check(CLI::Range(1e-5, 1.0));
+    referenceCmd->add_option("--min-points", reference.settings.minSamples, "Points on each object at least")
+        ->capture_default_str()
+        ->check(CLI::Range(int64_t(1), int64_t(1) << 40));
+    referenceCmd->add_option("--max-points", reference.settings.maxSamples, "Points on each object at most")
+        ->capture_default_str()
+        ->check(CLI::Range(int64_t(1), int64_t(1) << 40));
+    referenceCmd
+        ->add_option("--patches", reference.patches,
+                     "Patches the geometry is meshed into (only curved objects depend on it)")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100000000));
 
     CLI::App* viewCmd = app.add_subcommand("view", "Browse a solved scene interactively");
     RenderCli view;
@@ -456,7 +544,7 @@ int main(int argc, char** argv) {
         ->check(CLI::Range(1, 1 << 24));
     benchCmd->add_option("--cache", benchOptions.cache, "Folder for cached references (default ~/.cache/penumbra)");
 
-    for (CLI::App* cmd : {solveCmd, renderCmd, viewCmd, exportCmd, benchCmd}) {
+    for (CLI::App* cmd : {solveCmd, renderCmd, viewCmd, exportCmd, benchCmd, referenceCmd}) {
         cmd->add_option("--threads", common.threads, "Threads (0: all cores)");
         cmd->add_flag("--quiet,-q", common.quiet, "Warnings and errors only");
         cmd->add_flag("--verbose,-v", common.verbose, "Debug output");
@@ -478,6 +566,7 @@ int main(int argc, char** argv) {
         if (*exportCmd) return runExport(exportDir, exportOut, exportFormat, exportStops);
         if (*compareCmd) return runCompare(compareImage, compareReference, compareScene, compareCamera);
         if (*viewCmd) return runView(view, viewSolve, viewer, common);
+        if (*referenceCmd) return runReference(reference, common);
         if (*benchCmd) {
             benchOptions.seed = common.seed;
             return runBenchCommand(benchOptions, benchResolution);

@@ -1,5 +1,6 @@
 #include "io/report.h"
 
+#include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
@@ -139,6 +140,74 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
     for (const SolveSetting& e : solveSettings(o))
         settings[e.key] = std::visit([](auto* v) { return Json(*v); }, e.value);
     return report.dump(2) + "\n";
+}
+
+std::string objectReferenceJson(const Scene& scene, const std::vector<ObjectEstimate>& estimates,
+                                const ObjectReferenceSettings& settings, double seconds) {
+    using Json = nlohmann::json;
+    Json out;
+    Json& objs = out["objects"];
+    objs = Json::object();
+    int64_t points = 0;
+    for (size_t o = 0; o < estimates.size(); ++o) {
+        const ObjectEstimate& e = estimates[o];
+        if (e.samples == 0) continue;
+        points += e.samples;
+        objs[scene.objects[o].name] = {{"area_m2", e.area},
+                                       {"radiosity_mean", rgbJson(e.radiosity)},
+                                       {"std_error", rgbJson(e.stdError)},
+                                       {"relative_error", e.relativeError},
+                                       {"points", e.samples}};
+    }
+    out["reference"] = {{"method", "path tracing from uniform points on each object (NEE + MIS)"},
+                        {"points", points},
+                        {"seconds", seconds},
+                        {"threads", threadCount()}};
+    out["scene"] = {{"file", scene.path}, {"unit_scale", scene.unitScale}};
+    out["settings"] = {{"seed", settings.seed},
+                       {"target_error", settings.targetError},
+                       {"min_points", settings.minSamples},
+                       {"max_points", settings.maxSamples}};
+    return out.dump(2) + "\n";
+}
+
+std::vector<ObjectComparison> compareObjectRadiosity(const std::string& valueFile, const std::string& referenceFile) {
+    using Json = nlohmann::json;
+    auto objectsOf = [](const std::string& file) {
+        std::ifstream in(file);
+        if (!in) throw Error(cat(file, ": cannot open"));
+        Json j = Json::parse(in, nullptr, false);
+        if (j.is_discarded() || !j.contains("objects") || !j["objects"].is_object())
+            throw Error(cat(file, ": not a report.json or reference file (no \"objects\")"));
+        return j["objects"];
+    };
+    const Json values = objectsOf(valueFile), refs = objectsOf(referenceFile);
+    auto rgbOf = [](const Json& entry, const char* key, const std::string& file, const std::string& name) {
+        const Json* v = entry.contains(key) ? &entry[key] : nullptr;
+        if (!v || !v->is_array() || v->size() != 3 || !(*v)[0].is_number() || !(*v)[1].is_number() ||
+            !(*v)[2].is_number())
+            throw Error(cat(file, ": object ", name, ": ", key, " is not three numbers"));
+        return Rgb((*v)[0].get<double>(), (*v)[1].get<double>(), (*v)[2].get<double>());
+    };
+    std::vector<ObjectComparison> out;
+    for (const auto& [name, ref] : refs.items()) {
+        if (!values.contains(name)) continue;
+        ObjectComparison c;
+        c.name = name;
+        c.reference = rgbOf(ref, "radiosity_mean", referenceFile, name);
+        c.value = rgbOf(values[name], "radiosity_mean", valueFile, name);
+        c.area = ref.value("area_m2", 0.0);
+        if (!(c.reference.sum() > 0)) continue;
+        c.ratio = c.value.sum() / c.reference.sum();
+        // Channels lit to at least a hundredth of the brightest: a red wall's blue is noise.
+        for (int k = 0; k < 3; ++k)
+            if (c.reference[k] > 0.01 * c.reference.maxCoeff())
+                c.worstChannel = std::max(c.worstChannel, std::abs(c.value[k] / c.reference[k] - 1));
+        const double relative = ref.value("relative_error", 0.0);
+        if (relative > 0) c.z = (c.value.sum() - c.reference.sum()) / (relative * c.reference.sum());
+        out.push_back(c);
+    }
+    return out;
 }
 
 std::string convergenceCsv(const SolveResult& r) {

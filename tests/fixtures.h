@@ -129,6 +129,32 @@ inline std::string furnaceCube(double rho, const std::string& spec = "", bool sp
     return cubeScene(spec.empty() ? m : cat(m, R"(, "spec": )", spec), specTop ? "spec" : "m", extra, tail);
 }
 
+// The unit furnace cube (every surface reflectance rho, emission 1) holding two boxes and a sphere,
+// none touching another: occluders everywhere, nothing open, no back face in sight.
+inline std::string furnaceWithOccluders(double rho) {
+    auto quad = [](const std::string& name, std::initializer_list<std::array<double, 3>> v) {
+        std::string text = cat(R"(, {"name": ")", name, R"(", "type": "quad", "material": "m", "vertices": [)");
+        bool first = true;
+        for (const auto& p : v) {
+            text += cat(first ? "" : ",", "[", p[0], ",", p[1], ",", p[2], "]");
+            first = false;
+        }
+        return text + "]}";
+    };
+    auto box = [&](const std::string& name, double x0, double x1, double y0, double y1, double z0, double z1) {
+        return quad(name + "_bottom", {{x0, y0, z0}, {x1, y0, z0}, {x1, y0, z1}, {x0, y0, z1}}) +
+               quad(name + "_top", {{x0, y1, z0}, {x0, y1, z1}, {x1, y1, z1}, {x1, y1, z0}}) +
+               quad(name + "_left", {{x0, y0, z0}, {x0, y0, z1}, {x0, y1, z1}, {x0, y1, z0}}) +
+               quad(name + "_right", {{x1, y0, z0}, {x1, y1, z0}, {x1, y1, z1}, {x1, y0, z1}}) +
+               quad(name + "_front", {{x0, y0, z0}, {x0, y1, z0}, {x1, y1, z0}, {x1, y0, z0}}) +
+               quad(name + "_back", {{x0, y0, z1}, {x1, y0, z1}, {x1, y1, z1}, {x0, y1, z1}});
+    };
+    return furnaceCube(
+        rho, "", false,
+        box("box", 0.15, 0.45, 0.1, 0.55, 0.2, 0.5) + box("slab", 0.55, 0.9, 0.05, 0.2, 0.1, 0.35) +
+            R"(, {"name": "ball", "type": "sphere", "material": "m", "center": [0.7, 0.6, 0.65], "radius": 0.2})");
+}
+
 // Form factor from a point, facing up at the origin, to the parallel rectangle [x0,x1] x [y0,y1] at
 // height h facing down (Howell's case B-3 summed over the four corner rectangles).
 inline double pointToRectangle(double x0, double x1, double y0, double y1, double h) {

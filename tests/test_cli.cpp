@@ -420,3 +420,41 @@ TEST(Viewer, InWindowFinalGatherMatchesTheRenderOfTheSameView) {
     std::printf("in-window final gather vs render: blurred mean relative error %.4f\n", e.meanRelative);
     EXPECT_LT(e.meanRelative, 0.05);
 }
+
+// `reference` writes each object's path-traced radiosity with its noise; `compare` measures a solve's
+// report.json against it, object by object. A closed furnace (pi L_e / (1 - rho) everywhere) gives
+// both a known answer.
+TEST(Cli, ReferenceMeasuresASolveObjectByObject) {
+    const std::string scene = test::writeText("furnace-ref.json", test::furnaceWithOccluders(0.5));
+    const std::string out = test::tempDir() + "/furnace-ref";
+    fs::remove_all(out);
+    const CommandResult ref =
+        run(cat("reference ", scene, " --out ", out, "/reference.json --error 0.01 --patches 200"));
+    ASSERT_EQ(ref.status, 0) << ref.output;
+    std::ifstream in(out + "/reference.json");
+    const nlohmann::json j = nlohmann::json::parse(in);
+    ASSERT_EQ(j["objects"].size(), 19u);
+    for (const auto& [name, o] : j["objects"].items()) {
+        EXPECT_LE(o["relative_error"].get<double>(), 0.01) << name;
+        EXPECT_NEAR(o["radiosity_mean"][0].get<double>(), 2 * kPi, 4 * o["std_error"][0].get<double>()) << name;
+    }
+    const CommandResult solved = run(cat("solve ", scene, " --out ", out, "/solve --patches 200"));
+    ASSERT_EQ(solved.status, 0) << solved.output;
+    const CommandResult cmp = run(cat("compare ", out, "/solve/report.json ", out, "/reference.json"));
+    ASSERT_EQ(cmp.status, 0) << cmp.output;
+    EXPECT_NE(cmp.output.find("ball"), std::string::npos) << cmp.output;
+    EXPECT_NE(cmp.output.find("19 objects: worst"), std::string::npos) << cmp.output;
+    // Bad input: one clear error naming what is wrong, and nothing written.
+    const CommandResult badOut = run(cat("reference ", scene, " --out ", out, "/reference.exr"));
+    EXPECT_NE(badOut.status, 0);
+    EXPECT_NE(badOut.output.find("expected a .json file name"), std::string::npos) << badOut.output;
+    EXPECT_FALSE(fs::exists(out + "/reference.exr"));
+    const CommandResult notReport = run(cat("compare ", out, "/solve/convergence.csv.json ", out, "/reference.json"));
+    EXPECT_NE(notReport.status, 0);
+    EXPECT_NE(notReport.output.find("cannot open"), std::string::npos) << notReport.output;
+    test::writeText("not-a-report.json", "{\"views\": []}");
+    const CommandResult wrongForm =
+        run(cat("compare ", test::tempDir(), "/not-a-report.json ", out, "/reference.json"));
+    EXPECT_NE(wrongForm.status, 0);
+    EXPECT_NE(wrongForm.output.find("not-a-report.json: not a report.json"), std::string::npos) << wrongForm.output;
+}

@@ -150,34 +150,6 @@ TEST(FormFactorMatrix, ClosedBoxRowsSumToOne) {
 
 namespace {
 
-// A closed box floating in the furnace cube (six outward quads) and a faceted sphere: occluders whose
-// shadows sampled visibility gets only approximately right.
-// The unit furnace cube (every surface reflectance rho, emission 1) holding two boxes and a sphere,
-// none touching another: occluders everywhere, nothing open, no back face in sight.
-std::string furnaceWithOccluders(double rho) {
-    auto quad = [](const std::string& name, std::initializer_list<std::array<double, 3>> v) {
-        std::string text = cat(R"(, {"name": ")", name, R"(", "type": "quad", "material": "m", "vertices": [)");
-        bool first = true;
-        for (const auto& p : v) {
-            text += cat(first ? "" : ",", "[", p[0], ",", p[1], ",", p[2], "]");
-            first = false;
-        }
-        return text + "]}";
-    };
-    auto box = [&](const std::string& name, double x0, double x1, double y0, double y1, double z0, double z1) {
-        return quad(name + "_bottom", {{x0, y0, z0}, {x1, y0, z0}, {x1, y0, z1}, {x0, y0, z1}}) +
-               quad(name + "_top", {{x0, y1, z0}, {x0, y1, z1}, {x1, y1, z1}, {x1, y1, z0}}) +
-               quad(name + "_left", {{x0, y0, z0}, {x0, y0, z1}, {x0, y1, z1}, {x0, y1, z0}}) +
-               quad(name + "_right", {{x1, y0, z0}, {x1, y1, z0}, {x1, y1, z1}, {x1, y0, z1}}) +
-               quad(name + "_front", {{x0, y0, z0}, {x0, y1, z0}, {x1, y1, z0}, {x1, y0, z0}}) +
-               quad(name + "_back", {{x0, y0, z1}, {x1, y0, z1}, {x1, y1, z1}, {x0, y1, z1}});
-    };
-    return test::furnaceCube(
-        rho, "", false,
-        box("box", 0.15, 0.45, 0.1, 0.55, 0.2, 0.5) + box("slab", 0.55, 0.9, 0.05, 0.2, 0.1, 0.35) +
-            R"(, {"name": "ball", "type": "sphere", "material": "m", "center": [0.7, 0.6, 0.65], "radius": 0.2})");
-}
-
 SolveResult solveByRays(const std::string& json, int patches, int rays, const std::string& solver = "gauss-seidel",
                         double tolerance = 1e-9) {
     SolveOptions o;
@@ -193,7 +165,7 @@ SolveResult solveByRays(const std::string& json, int patches, int rays, const st
 }  // namespace
 
 TEST(RayFormFactors, RowsOfAClosedSceneSumToOneWhateverTheOccluders) {
-    const SolveResult r = solveByRays(furnaceWithOccluders(0.5), 300, 256);
+    const SolveResult r = solveByRays(test::furnaceWithOccluders(0.5), 300, 256);
     ASSERT_TRUE(r.F.sampled);
     for (double s : rowSums(r.F)) ASSERT_NEAR(s, 1.0, 1e-6) << "every ray lands on a front face";
     EXPECT_TRUE(r.F.backTransfers.empty()) << "no back face is in sight in a closed scene of closed objects";
@@ -223,7 +195,7 @@ TEST_P(FurnaceWithOccluders, EveryPatchHoldsEOverOneMinusRhoAtTheDefaults) {
     o.solver = solver;
     o.solverSettings.tolerance = 1e-5 * (1 - rho);
     o.solverSettings.maxIterations = 10000000;
-    expectFurnace(solveScene(test::sceneFromJson(furnaceWithOccluders(rho)), o), rho, solver);
+    expectFurnace(solveScene(test::sceneFromJson(test::furnaceWithOccluders(rho)), o), rho, solver);
 }
 
 INSTANTIATE_TEST_SUITE_P(Solvers, FurnaceWithOccluders,
@@ -235,8 +207,9 @@ class RayFurnace : public ::testing::TestWithParam<std::string> {};
 TEST_P(RayFurnace, EveryPatchHoldsEOverOneMinusRho) {
     const std::string solver = GetParam();
     const double rho = 0.999;
-    expectFurnace(solveByRays(furnaceWithOccluders(rho), test::kSanitized ? 120 : 250, 64, solver, 1e-5 * (1 - rho)),
-                  rho, solver + " by rays");
+    expectFurnace(
+        solveByRays(test::furnaceWithOccluders(rho), test::kSanitized ? 120 : 250, 64, solver, 1e-5 * (1 - rho)), rho,
+        solver + " by rays");
 }
 
 INSTANTIATE_TEST_SUITE_P(Solvers, RayFurnace, ::testing::Values("jacobi", "gauss-seidel", "southwell"));
