@@ -51,9 +51,12 @@ struct ObjectPatches {
     double area = 0;
 };
 
-// One estimate of the radiosity leaving the front of `patch` at a uniform point on it.
-Rgb radiosityAt(const SceneTracer& tracer, int patch, const Material& m, Rng& rng, const PathSettings& path) {
+}  // namespace
+
+Rgb pathRadiosityAt(const SceneTracer& tracer, int patch, Rng& rng, const PathSettings& path) {
     const PatchSet& patches = tracer.patches();
+    const Scene& scene = tracer.scene();
+    const Material& m = scene.materialOf(scene.objects[size_t(patches.object[size_t(patch)])]);
     const double u1 = rng.uniform(), u2 = rng.uniform();
     const Vec3 x = samplePatchPoint(patches, size_t(patch), u1, u2, rng.uniform());
     const Vec3& n = patches.normal[size_t(patch)];
@@ -70,8 +73,6 @@ Rgb radiosityAt(const SceneTracer& tracer, int patch, const Material& m, Rng& rn
     if (pdf > 0) irradiance += kPi * pathRadiance(tracer, x + tracer.epsilon() * n, d, rng, path, pdf);
     return B + m.reflectance * irradiance;
 }
-
-}  // namespace
 
 std::vector<ObjectEstimate> pathObjectRadiosity(const SceneTracer& tracer, const ObjectReferenceSettings& settings) {
     const Scene& scene = tracer.scene();
@@ -108,7 +109,6 @@ std::vector<ObjectEstimate> pathObjectRadiosity(const SceneTracer& tracer, const
             for (int64_t k = k0; k < k1; ++k) {
                 const auto [o, b] = items[size_t(k)];
                 const ObjectPatches& op = of[o];
-                const Material& m = scene.materialOf(scene.objects[o]);
                 Rng rng = pairRng(settings.seed, Stream::ObjectReference, o, uint64_t(b));
                 Moments& r = results[size_t(k)];
                 for (int64_t s = 0; s < kBatch; ++s) {
@@ -116,7 +116,7 @@ std::vector<ObjectEstimate> pathObjectRadiosity(const SceneTracer& tracer, const
                     const size_t j =
                         std::min(size_t(std::upper_bound(op.cdf.begin(), op.cdf.end(), pick) - op.cdf.begin()),
                                  op.patch.size() - 1);
-                    r.add(radiosityAt(tracer, op.patch[j], m, rng, settings.path));
+                    r.add(pathRadiosityAt(tracer, op.patch[j], rng, settings.path));
                 }
                 g_referencePoints.add(uint64_t(kBatch));
                 progress.update();

@@ -30,6 +30,10 @@ struct ObjectEstimate {
     double area = 0;              // m^2, of the object's patches
 };
 
+// One estimate of the radiosity leaving the front of diffuse `patch` of the tracer's patches, at a
+// uniform point on it.
+Rgb pathRadiosityAt(const SceneTracer& tracer, int patch, Rng& rng, const PathSettings& path = {});
+
 // One estimate per scene object, in scene order. Deterministic for a seed whatever the threads.
 std::vector<ObjectEstimate> pathObjectRadiosity(const SceneTracer& tracer, const ObjectReferenceSettings& settings);
 
