@@ -124,12 +124,17 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
     thread_local std::vector<std::pair<Vec3, bool>> ends;
     ends.clear();
     int visible = 0, rays = 0;
+    // `count` segments whose ends cover both patches evenly: the largest full grid of strata that
+    // `count` fills, and uniform points for the rest (a grid only partly filled would leave the same
+    // band of every patch unsampled, and bias every penumbra it crosses).
     auto cast = [&](int count) {
-        const int side = stratumSide(count);
+        const int side = std::max(1, int(std::sqrt(double(count) + 0.5))), strata = side * side;
         for (int k = 0; k < count; ++k) {
-            const int sa = k % (side * side), sb = decorrelatedStratum(k % (side * side), side * side);
-            const Vec3 from = clipped ? uniformPoint(partA, rng) : stratifiedPoint(p, a, sa, side, rng);
-            const Vec3 to = clipped ? uniformPoint(partB, rng) : stratifiedPoint(p, b, sb, side, rng);
+            const bool gridded = k < strata;
+            const int sa = gridded ? k : 0, sb = gridded ? decorrelatedStratum(k, strata) : 0;
+            const int sideOf = gridded ? side : 1;
+            const Vec3 from = clipped ? uniformPoint(partA, rng) : stratifiedPoint(p, a, sa, sideOf, rng);
+            const Vec3 to = clipped ? uniformPoint(partB, rng) : stratifiedPoint(p, b, sb, sideOf, rng);
             ++rays;
             const bool open = !scene.occluded(from + liftA, to + liftB);
             visible += open;
@@ -137,7 +142,8 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
         }
     };
     cast(base);
-    if (visible > 0 && visible < rays) cast(3 * base);
+    // Where the first rays disagree, a shadow edge crosses the pair: a full grid four times finer.
+    if (visible > 0 && visible < rays) cast(4 * base);
     if (visible == 0 || visible == rays) return {double(visible) / rays, rays};
     double seen = 0, weights = 0;
     for (const auto& [x, open] : ends) {

@@ -19,7 +19,7 @@ namespace penumbra {
 
 struct FormFactorSettings {
     CubatureSettings cubature;
-    int visibilityRays = 4;  // per pair; pairs found partly visible get 4x as many
+    int visibilityRays = 4;  // per pair; pairs found partly visible get 4x as many more
     // auto (chooseFormFactors), rays (ray_form_factors.h) or analytic (cubature and visibility rays).
     std::string method = "auto";
     int raysPerPatch = 256;  // --form-factors rays: rays cast from each patch

@@ -24,7 +24,7 @@ namespace penumbra {
 struct HierarchySettings {
     double linkTolerance = 1e-5;  // BFA oracle: refine links carrying more than this share of the emitted power
     double minArea = 0;           // elements are not split below this area, m^2 (0: roots / 4^8)
-    int visibilityRays = 4;       // per link; partly visible links get four times as many
+    int visibilityRays = 4;       // per link; partly visible links get four times as many more
     CubatureSettings cubature{1e-3, 9, 5};
     int maxRounds = 12;  // refine-then-solve rounds
     // The scene is closed, with no back face in sight (sceneClosure, ray_form_factors.h): each leaf's links, its own
