@@ -50,8 +50,4 @@ inline Vec3 cosineDirection(const Vec3& n, Rng& rng) {
     return cosineDirection(n, u1, rng.uniform());
 }
 
-// Veach's power heuristic (beta = 2): the MIS weight of a sample drawn with density a against a
-// second strategy of density b.
-inline double powerHeuristic(double a, double b) { return a * a / (a * a + b * b); }
-
 }  // namespace penumbra

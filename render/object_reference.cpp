@@ -5,7 +5,6 @@
 
 #include "core/counters.h"
 #include "core/log.h"
-#include "core/optics.h"
 #include "core/parallel.h"
 #include "core/progress.h"
 
@@ -19,19 +18,17 @@ constexpr int64_t kBatch = 1024;  // points per work item: the unit of seeding a
 // Sums of one batch of points on one object.
 struct Moments {
     Rgb sum = Rgb::Zero(), squares = Rgb::Zero();
-    double total = 0, totalSquares = 0;  // of the channel sum
+    double totalSquares = 0;  // of the channel sum (whose sum is sum.sum())
     int64_t count = 0;
     void add(const Rgb& b) {
         sum += b;
         squares += b * b;
-        total += b.sum();
         totalSquares += b.sum() * b.sum();
         ++count;
     }
     void merge(const Moments& m) {
         sum += m.sum;
         squares += m.squares;
-        total += m.total;
         totalSquares += m.totalSquares;
         count += m.count;
     }
@@ -41,7 +38,10 @@ struct Moments {
         const double mean = s / double(count);
         return std::sqrt(std::max(0.0, s2 / double(count) - mean * mean) / double(count - 1));
     }
-    double relativeError() const { return total > 0 ? stdError(total, totalSquares) / (total / double(count)) : 0; }
+    double relativeError() const {
+        const double total = sum.sum();
+        return total > 0 ? stdError(total, totalSquares) / (total / double(count)) : 0;
+    }
 };
 
 // The patches of each object, with the cumulative share of the object's area up to each.
@@ -55,23 +55,14 @@ struct ObjectPatches {
 
 Rgb pathRadiosityAt(const SceneTracer& tracer, int patch, Rng& rng, const PathSettings& path) {
     const PatchSet& patches = tracer.patches();
-    const Scene& scene = tracer.scene();
-    const Material& m = scene.materialOf(scene.objects[size_t(patches.object[size_t(patch)])]);
     const double u1 = rng.uniform(), u2 = rng.uniform();
     const Vec3 x = samplePatchPoint(patches, size_t(patch), u1, u2, rng.uniform());
     const Vec3& n = patches.normal[size_t(patch)];
-    Rgb B = kPi * m.emission;
-    if ((m.reflectance <= 0).all()) return B;
-    // Irradiance: one point on the emitters and one cosine-sampled path, weighted by MIS.
-    Rgb irradiance = Rgb::Zero();
-    if (tracer.hasEmitters()) {
-        const LightSample l = tracer.sampleLight(x, n, rng);
-        if (l.found()) irradiance += l.radiance * (l.cosine / l.pdf) * powerHeuristic(l.pdf, l.cosine * kInvPi);
-    }
-    const Vec3 d = cosineDirection(n, rng);
-    const double pdf = n.dot(d) * kInvPi;
-    if (pdf > 0) irradiance += kPi * pathRadiance(tracer, x + tracer.epsilon() * n, d, rng, path, pdf);
-    return B + m.reflectance * irradiance;
+    // The path tracer's own estimate of the radiance leaving x, seen from just in front of it: the
+    // emission, and the reflected light by its next-event estimate and cosine bounce (MIS). The lift
+    // is far above float precision at the patch and far below any gap between surfaces.
+    const double lift = 1e-3 * patches.radius[size_t(patch)];
+    return kPi * pathRadiance(tracer, x + lift * n, -n, rng, path);
 }
 
 std::vector<ObjectEstimate> pathObjectRadiosity(const SceneTracer& tracer, const ObjectReferenceSettings& settings) {

@@ -1,10 +1,10 @@
 // Each object's mean radiosity by path tracing: the independent reference a solve is measured
 // against (issue 13's "within 1% of a converged reference"). Points are drawn uniformly over each
 // diffuse object; at each, the radiosity B = E + rho * integral of L_i cos over the hemisphere is
-// estimated with next-event estimation and a cosine-sampled path, both weighted by MIS as in the
-// path tracer. The mean over the points is unbiased for the object's area mean, whatever the mesh,
-// and its noise is measured: each object is sampled until its standard error (of the sum over the
-// channels) falls below a target share of its mean, or a sample cap.
+// pi times the path tracer's radiance leaving the point (its next-event estimation and
+// cosine-sampled bounce, weighted by MIS). The mean over the points is unbiased for the object's area mean, whatever
+// the mesh, and its noise is measured: each object is sampled until its standard error (of the sum over the channels)
+// falls below a target share of its mean, or a sample cap.
 #pragma once
 
 #include <cstdint>

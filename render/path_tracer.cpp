@@ -3,14 +3,18 @@
 #include "core/optics.h"
 
 namespace penumbra {
+namespace {
 
-Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir, Rng& rng, const PathSettings& settings,
-                 double bsdfPdf) {
+double powerHeuristic(double a, double b) { return a * a / (a * a + b * b); }
+
+}  // namespace
+
+Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir, Rng& rng,
+                 const PathSettings& settings) {
     Rgb L = Rgb::Zero(), throughput = Rgb::Ones();
     Vec3 o = origin, d = dir;
-    // The last bounce was the camera or a mirror/glass: emission counts fully. Else bsdfPdf is the
-    // solid-angle pdf of the last diffuse bounce, for MIS on emitters.
-    bool specular = !(bsdfPdf > 0);
+    bool specular = true;  // the last bounce was the camera or a mirror/glass: emission counts fully
+    double bsdfPdf = 0;    // solid-angle pdf of the last diffuse bounce, for MIS on emitters
     for (int depth = 0; depth < settings.maxDepth; ++depth) {
         SurfaceHit hit = tracer.trace(o, d);
         if (hit.found && hit.material->type != MaterialType::Diffuse) {

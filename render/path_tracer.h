@@ -14,11 +14,8 @@ struct PathSettings {
     int maxDepth = 1000;    // a guard against endless paths only; roulette ends paths long before
 };
 
-// Radiance arriving at `origin` from along `dir`. `bsdfPdf` > 0 says the ray leaves a diffuse
-// surface that made its own next-event estimate, with this solid-angle density: the emission the ray
-// finds is then weighted against that estimate (MIS). 0: from the camera or a mirror, counted whole.
-Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir, Rng& rng, const PathSettings& settings,
-                 double bsdfPdf = 0);
+Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir, Rng& rng,
+                 const PathSettings& settings);
 
 Image renderPath(const SceneTracer& tracer, const Camera& camera, int samplesPerPixel, uint64_t seed,
                  const PathSettings& settings = {});
