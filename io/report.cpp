@@ -53,7 +53,7 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
     for (size_t i = 0; i < r.patches.size(); ++i) {
         const size_t o = size_t(r.patches.object[i]);
         area[o] += r.patches.area[i];
-        weighted[o] += r.patches.area[i] * r.solution.B[i];
+        weighted[o] += litArea(r, i) * r.solution.B[i];  // a covered part is dark
         emitted[o] += r.power.emitted[i];
         absorbed[o] += r.power.absorbed[i];
         ++patchCount[o];

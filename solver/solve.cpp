@@ -125,8 +125,20 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
     r.F = FormFactorMatrix();  // the previous round's matrix goes before the next one is made
     if (!r.rays) r.rays = buildRayScene(scene, r.patches);  // else graded with it (contact_grading.h)
     r.system = buildSystem(scene, r.patches);
-    r.F = castsFormFactors(options) ? castFormFactors(r.patches, *r.rays, options.formFactors, smallSources(r.system))
-                                    : computeFormFactors(r.patches, *r.rays, options.formFactors);
+    if (castsFormFactors(options)) {
+        std::vector<char> emitting(n, 0);
+        for (size_t i = 0; i < n; ++i) emitting[i] = r.system.emission[i].maxCoeff() > 0;
+        r.F = castFormFactors(r.patches, *r.rays, options.formFactors, smallSources(r.system), emitting);
+        // What a patch's light leaves from and lands on is its uncovered part (ray_form_factors.h).
+        size_t covered = 0;
+        for (size_t i = 0; i < n; ++i) {
+            r.system.area[i] *= double(r.F.exposed[i]);
+            covered += r.F.exposed[i] < 1;
+        }
+        if (covered) logInfo("form factors (rays): ", covered, " patches partly covered by a solid resting on them");
+    } else {
+        r.F = computeFormFactors(r.patches, *r.rays, options.formFactors);
+    }
     std::vector<double> rows = rowSums(r.F);
     r.rowSumMin = n ? *std::min_element(rows.begin(), rows.end()) : 0;
     r.rowSumMax = n ? *std::max_element(rows.begin(), rows.end()) : 0;

@@ -68,6 +68,13 @@ struct SolveResult {
 
 SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer = {});
 
+// The area of patch i that light reaches and leaves, m^2, what its radiosity is the mean over: its
+// whole area, less any part covered by a solid resting on it (RadiositySystem::area). An object's
+// mean radiosity over its whole area is sum(litArea B) / sum(area).
+inline double litArea(const SolveResult& r, size_t i) {
+    return r.system.size() == r.patches.size() ? r.system.area[i] : r.patches.area[i];
+}
+
 // The tail of every matrix solve, on the system `r` holds (form factors, specular transport): the
 // iterations of `options.solver` (a matrix solver's name) to `options.solverSettings`, the power
 // balance and the displayed corners; its seconds add to r's. The bench solves one matrix to several

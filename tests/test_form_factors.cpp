@@ -271,6 +271,75 @@ TEST(RayFormFactors, ASmallLampsLightIsExactNotSampled) {
     EXPECT_LT(worst, 5e-3);
 }
 
+// A floor of four 1 m patches under a uniform sky (a black emitter 20 m wide, 1 m up, E = 1), with
+// a black box 2 mm tall and open at the bottom standing on a quarter of one patch, and a one-sided
+// black table top facing up 0.3 m over another. The box's covered quarter receives no light; the
+// rest of its patch sees the sky as any floor point does. A patch that held the mean over its whole
+// area, the covered part's darkness included, showed 0.75 of the light to everything that sees it
+// (the Cornell box's block faces read 10-14% dark in their bottom row): its radiosity is the mean
+// over the uncovered part, rho E F(x -> sky) averaged there, the object's mean the covered part dark.
+// The floor under the table sees the table's back, but not in every direction: it is not covered.
+TEST(RayFormFactors, ASolidStandingOnAPatchCoversItsShareAndNoMore) {
+    const Scene scene = test::sceneFromJson(R"({
+      "materials": {"sky": {"type": "diffuse", "reflectance": 0, "emission": 0.3183098861837907},
+                    "floor": {"type": "diffuse", "reflectance": 0.5},
+                    "black": {"type": "diffuse", "reflectance": 0}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "floor", "vertices": [[-1,0,-1],[-1,0,1],[1,0,1],[1,0,-1]]},
+        {"name": "sky", "type": "quad", "material": "sky", "vertices": [[-10,1,-10],[10,1,-10],[10,1,10],[-10,1,10]]},
+        {"name": "box_top", "type": "quad", "material": "black",
+         "vertices": [[0.5,0.002,0.5],[0.5,0.002,1.5],[1.5,0.002,1.5],[1.5,0.002,0.5]]},
+        {"name": "box_left", "type": "quad", "material": "black",
+         "vertices": [[0.5,0,0.5],[0.5,0,1.5],[0.5,0.002,1.5],[0.5,0.002,0.5]]},
+        {"name": "box_right", "type": "quad", "material": "black",
+         "vertices": [[1.5,0,0.5],[1.5,0.002,0.5],[1.5,0.002,1.5],[1.5,0,1.5]]},
+        {"name": "box_front", "type": "quad", "material": "black",
+         "vertices": [[0.5,0,0.5],[0.5,0.002,0.5],[1.5,0.002,0.5],[1.5,0,0.5]]},
+        {"name": "box_back", "type": "quad", "material": "black",
+         "vertices": [[0.5,0,1.5],[1.5,0,1.5],[1.5,0.002,1.5],[0.5,0.002,1.5]]},
+        {"name": "table", "type": "quad", "material": "black",
+         "vertices": [[-0.8,0.3,-0.8],[-0.8,0.3,-0.2],[-0.2,0.3,-0.2],[-0.2,0.3,-0.8]]}]})");
+    SolveOptions o;
+    o.meshing.patchSize = 1.0;
+    o.formFactors.method = "rays";
+    o.formFactors.raysPerPatch = 1024;
+    o.grading.levels = 0;
+    const SolveResult r = solveScene(scene, o);
+    ASSERT_EQ(r.F.exposed.size(), r.patches.size());
+    // rho E F(x -> sky) averaged over the floor points of [x0, x1] x [z0, z1] (a 40 x 40 grid) that
+    // lie outside the box's footprint [0.5, 1.5]^2.
+    auto meanLight = [](double x0, double x1, double z0, double z1, double& uncovered) {
+        double sum = 0;
+        int open = 0;
+        for (int a = 0; a < 40; ++a)
+            for (int b = 0; b < 40; ++b) {
+                const double x = x0 + (x1 - x0) * (a + 0.5) / 40, z = z0 + (z1 - z0) * (b + 0.5) / 40;
+                if (x > 0.5 && z > 0.5) continue;
+                sum += 0.5 * test::pointToRectangle(-10 - x, 10 - x, -10 - z, 10 - z, 1);
+                ++open;
+            }
+        uncovered = open / 1600.0;
+        return sum / open;
+    };
+    int seen = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        if (scene.objects[size_t(r.patches.object[i])].name != "floor") continue;
+        const Vec3 c = r.patches.centroid[i];
+        const double x0 = std::floor(c.x()), z0 = std::floor(c.z());
+        if (x0 == 0 && z0 == 0) {
+            double uncovered = 0;
+            const double exact = meanLight(x0, x0 + 1, z0, z0 + 1, uncovered);
+            ++seen;
+            EXPECT_NEAR(r.F.exposed[i], 0.75, 0.01) << "the box covers a quarter of this patch";
+            EXPECT_NEAR(r.solution.B[i][0], exact, 0.015 * exact) << "the mean over its uncovered part";
+            EXPECT_NEAR(litArea(r, i), uncovered * r.patches.area[i], 0.01) << "light leaves and lands there alone";
+        } else {
+            EXPECT_EQ(r.F.exposed[i], 1.0f) << "nothing stands on the patch at " << c.transpose();
+        }
+    }
+    EXPECT_EQ(seen, 1);
+}
+
 TEST(RayFormFactors, AShadowOnALargePatchTakesItsShareOfTheLight) {
     // The lamp over the floor with the black square between them, the floor in four 1 m patches: each
     // patch's corner under the lamp, where it sees the lamp best, lies in the square's shadow. A pair's

@@ -89,8 +89,10 @@ TEST(ObjectReference, SameEstimateWhateverTheThreadCount) {
 }
 
 // The default solve of the Cornell box, object by object, against the path-traced reference at 0.1%
-// standard error: the room's surfaces within 1%, the block faces (constant patches against the
-// corner where each meets the floor) within 3.5% for now; issue 13 asks 1% of them too.
+// standard error: the room's surfaces within 1%, the block faces within 2% for now (issue 13 asks
+// 1%). Measured at seed 1: worst short_block_2 +1.20%, the face in shadow, whose bottom row sees the
+// floor's penumbra in constant patches (+6 to +19% there); 0.87 to 2.17% over seeds 1-4. Before the
+// floor's patches under the blocks were counted as covered, the lit faces read -1.3 to -2.6%.
 TEST(ObjectReferenceSlow, CornellDefaultsAgainstThePathTracedReference) {
     const Scene scene = test::sceneFromJson(test::sceneFile("cornell-box.json"), "cornell-box.json");
     ObjectReferenceSettings s;
@@ -101,13 +103,13 @@ TEST(ObjectReferenceSlow, CornellDefaultsAgainstThePathTracedReference) {
     std::vector<Rgb> sum(scene.objects.size(), Rgb::Zero());
     for (size_t i = 0; i < r.patches.size(); ++i) {
         area[size_t(r.patches.object[i])] += r.patches.area[i];
-        sum[size_t(r.patches.object[i])] += r.patches.area[i] * r.solution.B[i];
+        sum[size_t(r.patches.object[i])] += litArea(r, i) * r.solution.B[i];
     }
     for (size_t o = 0; o < ref.size(); ++o) {
         const std::string& name = scene.objects[o].name;
         ASSERT_LE(ref[o].relativeError, s.targetError) << name;
         const double solved = sum[o].sum() / area[o], reference = ref[o].radiosity.sum();
-        const double bound = name.find("block") != std::string::npos ? 0.035 : 0.01;
+        const double bound = name.find("block") != std::string::npos ? 0.02 : 0.01;
         EXPECT_NEAR(solved / reference, 1.0, bound + 4 * ref[o].relativeError) << name;
     }
 }

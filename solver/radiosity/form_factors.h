@@ -85,6 +85,10 @@ public:
     // A_i F(i, j) = A_j F(j, i) to float rounding: the analytic matrix (balanced or not). Ray-cast
     // rows are not.
     bool reciprocal = true;
+    // Ray-cast rows only (else empty): the share of each patch's area that light reaches, less the
+    // part covered by a solid resting on it (a block standing on the floor: castFormFactors).
+    // Row i then transports the uncovered part alone, so B[i] is the mean over that part.
+    std::vector<float> exposed;
 
 private:
     size_t n_ = 0;

@@ -31,10 +31,28 @@ Vec3 rayOrigin(const PatchSet& patches, size_t i, double u1, double u2, double u
     return onPatch + 1e-3 * (patches.centroid[i] - onPatch) + lift * patches.normal[i];
 }
 
+// Whether an origin on patch i whose ray met a back face lies inside a solid (under a block whose
+// open bottom stands on the patch): its rays along the normal and in four directions 5 degrees above
+// the plane meet back faces too. From a point in the open, one-sided geometry may show its back in
+// some directions (a table top facing up, seen from the floor beneath), not in all of them.
+bool insideSolid(const PatchSet& patches, const RayScene& rays, size_t i, const Vec3& origin, int& cast) {
+    const Vec3 n = patches.normal[i];
+    const Vec3 a = (std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(n).normalized();
+    const Vec3 b = n.cross(a);
+    const double up = std::sin(5 * kPi / 180), along = std::cos(5 * kPi / 180);
+    for (const Vec3& d : {n, (along * a + up * n).eval(), (up * n - along * a).eval(), (along * b + up * n).eval(),
+                          (up * n - along * b).eval()}) {
+        const Hit h = rays.intersect(origin, d, 0, 1e30, RayView::Patches);
+        ++cast;
+        if (h.patch < 0 || patches.normal[size_t(h.patch)].dot(d) < 0) return false;
+    }
+    return true;
+}
+
 }  // namespace
 
 FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings,
-                                 const std::vector<char>& analyticColumns) {
+                                 const std::vector<char>& analyticColumns, const std::vector<char>& emitting) {
     Timer timer;
     const size_t n = patches.size();
     std::vector<size_t> analytic;
@@ -43,6 +61,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     std::vector<BackTransfer> back;
     // Each row's entries (column, value), columns ascending, until they are packed into one matrix.
     std::vector<std::vector<std::pair<int32_t, float>>> entries(n);
+    std::vector<float> exposed(n, 1.0f);
     const double lift = originLift(patches);
     const int side = stratumSide(settings.raysPerPatch);
     const int count = side * side;
@@ -66,7 +85,8 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 const Vec3 n0 = patches.normal[i];
                 backHits.clear();
                 touched.clear();
-                int analyticHits = 0;
+                int analyticHits = 0, inside = 0, followed = 0;
+                const bool mayBeCovered = !(i < emitting.size() && emitting[i]);
                 for (int k = 0; k < count; ++k) {
                     // Origins in one stratum of the patch, directions in another (a decorrelated
                     // permutation of the strata), both jittered.
@@ -78,37 +98,46 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     const Hit h = rays.intersect(origin, dir, 0, 1e30, RayView::Patches);
                     if (h.patch < 0) continue;  // out of the scene
                     const size_t j = size_t(h.patch);
-                    if (patches.normal[j].dot(dir) >= 0)
-                        ++backHits[h.patch];
-                    else if (j < analyticColumns.size() && analyticColumns[j])
+                    if (patches.normal[j].dot(dir) >= 0) {
+                        if (mayBeCovered && insideSolid(patches, rays, i, origin, followed))
+                            ++inside;
+                        else
+                            ++backHits[h.patch];
+                    } else if (j < analyticColumns.size() && analyticColumns[j])
                         ++analyticHits;
                     else if (hits[j]++ == 0)
                         touched.push_back(int32_t(j));
                 }
-                g_castRays.add(uint64_t(count));
-                // The analytic columns, computed as the analytic matrix computes them.
+                g_castRays.add(uint64_t(count + followed));
+                // The origins in the open, and their share of the patch (all of them but in a solid).
+                const int open = count - inside;
+                exposed[i] = float(open) / float(count);
                 std::vector<std::pair<int32_t, float>>& row = entries[i];
+                if (open == 0) continue;  // wholly inside a solid: no light reaches it
+                // The analytic columns, computed as the analytic matrix computes them (over the whole
+                // patch, whose covered part sees no source), then as a mean over the uncovered part.
                 double exact = 0;
                 const Timer columns;
                 for (size_t j : analytic) {
-                    const double f = frontFormFactor(patches, rays, i, j, settings);
+                    const double f = frontFormFactor(patches, rays, i, j, settings) / exposed[i];
                     if (f > 0) row.push_back({int32_t(j), float(f)});
                     exact += f;
                 }
                 if (!analytic.empty()) analyticNanos += int64_t(columns.seconds() * 1e9);
                 // Scale the rays' other fates so that all fates sum to one; should every ray have met an
                 // analytic column (no other fate to scale), those columns take the whole row.
-                const double rayShare = double(analyticHits) / count;
+                const double rayShare = double(analyticHits) / open;
                 double scale = 1;
                 if (!analytic.empty() && rayShare < 1)
                     scale = std::max(0.0, 1 - exact) / (1 - rayShare);
                 else if (!analytic.empty() && exact > 0)
                     for (auto& e : row) e.second = float(e.second / exact);
                 for (int32_t j : touched) {
-                    row.push_back({j, float(scale * hits[size_t(j)] / count)});
+                    row.push_back({j, float(scale * hits[size_t(j)] / open)});
                     hits[size_t(j)] = 0;
                 }
                 std::sort(row.begin(), row.end());
+                // A_i F(i -> back of j), with the light of the uncovered part, exposed[i] A_i.
                 for (const auto& [j, h] : backHits)
                     myBack.push_back({int(i), j, scale * patches.area[i] * double(h) / double(count)});
             }
@@ -130,6 +159,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     F.sampled = true;
     F.reciprocal = false;
     F.backTransfers = std::move(back);
+    F.exposed = std::move(exposed);
     std::sort(F.backTransfers.begin(), F.backTransfers.end(), [](const BackTransfer& a, const BackTransfer& b) {
         return a.from != b.from ? a.from < b.from : a.to < b.to;
     });

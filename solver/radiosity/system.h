@@ -15,7 +15,9 @@
 namespace penumbra {
 
 struct RadiositySystem {
-    std::vector<double> area;      // m^2
+    // m^2: where light leaves and lands, the patch's area less any part covered by a solid resting
+    // on it (ray-cast form factors find those: FormFactorMatrix::exposed); B is the mean over it.
+    std::vector<double> area;
     std::vector<Rgb> reflectance;  // diffuse albedo of the front face
     std::vector<Rgb> emission;     // exitance E = pi L_e of the front face, W/m^2
     std::vector<int> object;       // the scene object of each patch
