@@ -129,12 +129,13 @@ TEST(Hierarchy, RefusesMirrorsAndGlassByName) {
 
 TEST(Hierarchy, AutoPicksTheMatrixWhenItFitsAndTheHierarchyWhenNot) {
     SolveOptions o;  // solver "auto" by default
-    o.meshing.targetPatches = 300;
+    o.meshing.targetPatches = 100;
+    o.formFactors.method = "rays";  // the choice is under test, not the form factors: the fast ones
     const Scene box = test::sceneFromJson(sceneFile("cornell-box.json"));
     const SolveResult small = solveScene(box, o);
     EXPECT_EQ(small.solverName, "gauss-seidel");
     EXPECT_NE(small.solverReason.find("MiB"), std::string::npos) << small.solverReason;
-    o.maxMemoryBytes = 100e3;  // 300 patches need 360 kB of matrix: more than half of this
+    o.maxMemoryBytes = 100e3;  // 100 patches' ray-cast rows need 200 kB or more: over half of this
     const SolveResult tight = solveScene(box, o);
     EXPECT_EQ(tight.solverName, "hierarchical");
     EXPECT_NE(tight.solverReason.find("hierarchy"), std::string::npos) << tight.solverReason;

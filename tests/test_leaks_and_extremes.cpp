@@ -36,7 +36,7 @@ Rgb objectMean(const SolveResult& r, int object) {
     Rgb sum = Rgb::Zero();
     double area = 0;
     for (size_t i = 0; i < r.patches.size(); ++i)
-        if (r.patches.object[i] == object) sum += r.patches.area[i] * r.solution.B[i], area += r.patches.area[i];
+        if (r.patches.object[i] == object) sum += litArea(r, i) * r.solution.B[i], area += r.patches.area[i];
     return sum / area;
 }
 

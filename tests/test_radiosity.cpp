@@ -171,7 +171,7 @@ class Determinism : public ::testing::TestWithParam<std::string> {};
 TEST_P(Determinism, ResultsDoNotDependOnTheThreadCount) {
     // Randomness is seeded per patch pair (or link), never per thread: one thread and two give the
     // same bits.
-    const int patches = test::kSanitized ? 200 : 600;
+    const int patches = test::kSanitized ? 100 : 600;
     setThreadCount(1);
     const SolveResult one = solve(cornellBox(), patches, GetParam());
     setThreadCount(2);
