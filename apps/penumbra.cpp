@@ -498,6 +498,11 @@ int main(int argc, char** argv) {
         ->capture_default_str()
         ->check(CLI::Range(int64_t(1), int64_t(1) << 40));
     referenceCmd
+        ->add_option("--min-area", reference.settings.minArea,
+                     "Estimate only the objects of at least this area, m^2 (a large scene's walls and floors)")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 1e30));
+    referenceCmd
         ->add_option("--patches", reference.patches,
                      "Patches the geometry is meshed into (only curved objects depend on it)")
         ->capture_default_str()

@@ -167,7 +167,8 @@ std::string objectReferenceJson(const Scene& scene, const std::vector<ObjectEsti
     out["settings"] = {{"seed", settings.seed},
                        {"target_error", settings.targetError},
                        {"min_points", settings.minSamples},
-                       {"max_points", settings.maxSamples}};
+                       {"max_points", settings.maxSamples},
+                       {"min_area_m2", settings.minArea}};
     return out.dump(2) + "\n";
 }
 

@@ -85,7 +85,7 @@ std::vector<ObjectEstimate> pathObjectRadiosity(const SceneTracer& tracer, const
     for (size_t o = 0; o < objects; ++o) {
         estimates[o].area = of[o].area;
         const bool diffuse = scene.materialOf(scene.objects[o]).type == MaterialType::Diffuse;
-        if (diffuse && of[o].area > 0) planned[o] = minBatches;
+        if (diffuse && of[o].area > 0 && of[o].area >= settings.minArea) planned[o] = minBatches;
     }
     for (int round = 1;; ++round) {
         // This round's work items: (object, batch) for every batch planned and not yet traced.

@@ -18,6 +18,7 @@ struct ObjectReferenceSettings {
     double targetError = 0.002;      // relative standard error to stop at, per object
     int64_t minSamples = 16384;      // points on each object at least
     int64_t maxSamples = 1ll << 24;  // and at most
+    double minArea = 0;              // m^2: smaller objects are left out (a large scene's rooms, not its props)
     uint64_t seed = 1;
     PathSettings path;
 };

@@ -88,6 +88,29 @@ TEST(ObjectReference, SameEstimateWhateverTheThreadCount) {
     }
 }
 
+// --min-area leaves the small objects out (a large scene's props) and changes nothing of the others:
+// each object's points are seeded by the object and the batch, not by what else is sampled.
+TEST(ObjectReference, SmallObjectsLeftOutAndTheOthersUnchanged) {
+    const Scene scene = test::sceneFromJson(test::furnaceWithOccluders(0.5));
+    ObjectReferenceSettings s;
+    s.targetError = 0.02;
+    s.minSamples = 2048;
+    const std::vector<ObjectEstimate> all = referenceOf(scene, 100, s);
+    s.minArea = 0.6;  // the cube's faces (1 m^2), not the boxes' or the ball (0.50 m^2)
+    const std::vector<ObjectEstimate> large = referenceOf(scene, 100, s);
+    int kept = 0;
+    for (size_t o = 0; o < all.size(); ++o) {
+        if (all[o].area >= 0.6) {
+            ++kept;
+            EXPECT_EQ(large[o].samples, all[o].samples) << scene.objects[o].name;
+            EXPECT_EQ(large[o].radiosity[0], all[o].radiosity[0]) << scene.objects[o].name;
+        } else {
+            EXPECT_EQ(large[o].samples, 0) << scene.objects[o].name << ", " << all[o].area << " m^2";
+        }
+    }
+    EXPECT_EQ(kept, 6);
+}
+
 // The default solve of the Cornell box, object by object, against the path-traced reference at 0.1%
 // standard error: the room's surfaces within 1%, the block faces within 2% for now (issue 13 asks
 // 1%). Measured at seed 1: worst short_block_2 +1.20%, the face in shadow, whose bottom row sees the
