@@ -193,9 +193,11 @@ std::vector<double> objectAreas(const Scene& scene, const PatchSet& patches) {
     return area;
 }
 
-std::vector<Rgb> objectMeans(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& B) {
+// Over each object's whole area, the parts covered by a solid resting on them dark (litArea).
+std::vector<Rgb> objectMeans(const Scene& scene, const SolveResult& r) {
+    const PatchSet& patches = r.patches;
     std::vector<Rgb> sum(scene.objects.size(), Rgb::Zero());
-    for (size_t i = 0; i < patches.size(); ++i) sum[size_t(patches.object[i])] += patches.area[i] * B[i];
+    for (size_t i = 0; i < patches.size(); ++i) sum[size_t(patches.object[i])] += litArea(r, i) * r.solution.B[i];
     const std::vector<double> area = objectAreas(scene, patches);
     for (size_t o = 0; o < sum.size(); ++o) sum[o] /= std::max(area[o], 1e-300);
     return sum;
@@ -339,7 +341,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
         rec->matrixMiB = matrixMiB;
         rec->storageMiB = r.solverName == "hierarchical" ? r.hierarchy.bytes / (1 << 20) : matrixMiB;
         rec->rayCount = rays;
-        rec->objectMean = objectMeans(scene_, r.patches, r.solution.B);
+        rec->objectMean = objectMeans(scene_, r);
         solves_[keyOf(s, tolerance)] = std::move(rec);
     };
     keep(tolerances.front());

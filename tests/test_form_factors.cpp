@@ -356,7 +356,7 @@ TEST(RayFormFactors, AShadowOnALargePatchTakesItsShareOfTheLight) {
     const SolveResult r = solveScene(test::sceneFromJson(test::lampOverFloor(true)), o);
     double solved = 0, area = 0;
     for (size_t i = 0; i < r.patches.size(); ++i)
-        if (r.patches.object[i] == 0) solved += r.patches.area[i] * r.solution.B[i][0], area += r.patches.area[i];
+        if (r.patches.object[i] == 0) solved += litArea(r, i) * r.solution.B[i][0], area += r.patches.area[i];
     solved /= area;
     const int floorGrid = 100, lampGrid = 16;
     double exact = 0;
