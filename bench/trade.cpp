@@ -193,16 +193,6 @@ std::vector<double> objectAreas(const Scene& scene, const PatchSet& patches) {
     return area;
 }
 
-// Over each object's whole area, the parts covered by a solid resting on them dark (litArea).
-std::vector<Rgb> objectMeans(const Scene& scene, const SolveResult& r) {
-    const PatchSet& patches = r.patches;
-    std::vector<Rgb> sum(scene.objects.size(), Rgb::Zero());
-    for (size_t i = 0; i < patches.size(); ++i) sum[size_t(patches.object[i])] += litArea(r, i) * r.solution.B[i];
-    const std::vector<double> area = objectAreas(scene, patches);
-    for (size_t o = 0; o < sum.size(); ++o) sum[o] /= std::max(area[o], 1e-300);
-    return sum;
-}
-
 // Relative error of each diffuse object's mean radiosity (all channels together) against the
 // reference solve's: {max, area-weighted mean} over the objects that receive light.
 std::pair<double, double> objectErrors(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& mean,
@@ -341,7 +331,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
         rec->matrixMiB = matrixMiB;
         rec->storageMiB = r.solverName == "hierarchical" ? r.hierarchy.bytes / (1 << 20) : matrixMiB;
         rec->rayCount = rays;
-        rec->objectMean = objectMeans(scene_, r);
+        rec->objectMean = objectRadiosity(r, scene_.objects.size());
         solves_[keyOf(s, tolerance)] = std::move(rec);
     };
     keep(tolerances.front());

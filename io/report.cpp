@@ -48,12 +48,12 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
     using Json = nlohmann::json;
     const size_t objects = scene.objects.size();
     std::vector<double> area(objects, 0.0);
-    std::vector<Rgb> weighted(objects, Rgb::Zero()), emitted(objects, Rgb::Zero()), absorbed(objects, Rgb::Zero());
+    const std::vector<Rgb> radiosity = objectRadiosity(r, objects);
+    std::vector<Rgb> emitted(objects, Rgb::Zero()), absorbed(objects, Rgb::Zero());
     std::vector<int> patchCount(objects, 0);
     for (size_t i = 0; i < r.patches.size(); ++i) {
         const size_t o = size_t(r.patches.object[i]);
         area[o] += r.patches.area[i];
-        weighted[o] += litArea(r, i) * r.solution.B[i];  // a covered part is dark
         emitted[o] += r.power.emitted[i];
         absorbed[o] += r.power.absorbed[i];
         ++patchCount[o];
@@ -64,7 +64,7 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
     for (size_t o = 0; o < objects; ++o) {
         Json entry;
         entry["area_m2"] = area[o];
-        entry["radiosity_mean"] = rgbJson(area[o] > 0 ? Rgb(weighted[o] / area[o]) : Rgb::Zero());
+        entry["radiosity_mean"] = rgbJson(radiosity[o]);
         entry["emitted_power_w"] = rgbJson(emitted[o]);
         entry["absorbed_power_w"] = rgbJson(absorbed[o]);
         entry["patches"] = patchCount[o];

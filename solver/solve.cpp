@@ -444,6 +444,18 @@ SolveResult solveUncounted(const Scene& scene, const SolveOptions& options, cons
 
 }  // namespace
 
+std::vector<Rgb> objectRadiosity(const SolveResult& r, size_t objects) {
+    std::vector<Rgb> sum(objects, Rgb::Zero());
+    std::vector<double> area(objects, 0.0);
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        const size_t o = size_t(r.patches.object[i]);
+        sum[o] += litArea(r, i) * r.solution.B[i];
+        area[o] += r.patches.area[i];
+    }
+    for (size_t o = 0; o < objects; ++o) sum[o] = area[o] > 0 ? Rgb(sum[o] / area[o]) : Rgb::Zero();
+    return sum;
+}
+
 SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer) {
     const CounterValues before = counterValues();
     SolveResult r = solveUncounted(scene, options, observer);

@@ -69,11 +69,14 @@ struct SolveResult {
 SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer = {});
 
 // The area of patch i that light reaches and leaves, m^2, what its radiosity is the mean over: its
-// whole area, less any part covered by a solid resting on it (RadiositySystem::area). An object's
-// mean radiosity over its whole area is sum(litArea B) / sum(area).
+// whole area, less any part covered by a solid resting on it (RadiositySystem::area).
 inline double litArea(const SolveResult& r, size_t i) {
     return r.system.size() == r.patches.size() ? r.system.area[i] : r.patches.area[i];
 }
+
+// Each of the scene's `objects` mean radiosity over its whole area, W/m^2: sum(litArea B) / sum(area)
+// over its patches, a part covered by a solid resting on it counted dark (0 for no patches).
+std::vector<Rgb> objectRadiosity(const SolveResult& r, size_t objects);
 
 // The tail of every matrix solve, on the system `r` holds (form factors, specular transport): the
 // iterations of `options.solver` (a matrix solver's name) to `options.solverSettings`, the power

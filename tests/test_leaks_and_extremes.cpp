@@ -32,14 +32,6 @@ SolveResult solve(const Scene& scene, int patches) {
     return solveScene(scene, o);
 }
 
-Rgb objectMean(const SolveResult& r, int object) {
-    Rgb sum = Rgb::Zero();
-    double area = 0;
-    for (size_t i = 0; i < r.patches.size(); ++i)
-        if (r.patches.object[i] == object) sum += litArea(r, i) * r.solution.B[i], area += r.patches.area[i];
-    return sum / area;
-}
-
 }  // namespace
 
 namespace {
@@ -79,7 +71,7 @@ TEST(Extremes, ReflectanceZeroAndOneInAnOpenScene) {
             twoSquares(1, cat(R"({"type": "diffuse", "reflectance": )", rho, "}"), kReceiverSquare));
         const SolveResult r = solve(scene, 200);
         const double expected = rho * kPi * 0.19982;
-        EXPECT_NEAR(objectMean(r, 1)[0], expected, 0.005 * kPi * 0.19982) << "rho " << rho;
+        EXPECT_NEAR(objectRadiosity(r, scene.objects.size())[1][0], expected, 0.005 * kPi * 0.19982) << "rho " << rho;
         test::expectBalanceByRays(scene, r, 2e-3, 1024, cat("rho ", rho));
     }
 }

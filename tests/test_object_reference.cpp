@@ -122,16 +122,11 @@ TEST(ObjectReferenceSlow, CornellDefaultsAgainstThePathTracedReference) {
     s.targetError = 0.001;
     const std::vector<ObjectEstimate> ref = referenceOf(scene, 3000, s);
     const SolveResult r = solveScene(scene, SolveOptions{});
-    std::vector<double> area(scene.objects.size(), 0);
-    std::vector<Rgb> sum(scene.objects.size(), Rgb::Zero());
-    for (size_t i = 0; i < r.patches.size(); ++i) {
-        area[size_t(r.patches.object[i])] += r.patches.area[i];
-        sum[size_t(r.patches.object[i])] += litArea(r, i) * r.solution.B[i];
-    }
+    const std::vector<Rgb> solvedMean = objectRadiosity(r, scene.objects.size());
     for (size_t o = 0; o < ref.size(); ++o) {
         const std::string& name = scene.objects[o].name;
         ASSERT_LE(ref[o].relativeError, s.targetError) << name;
-        const double solved = sum[o].sum() / area[o], reference = ref[o].radiosity.sum();
+        const double solved = solvedMean[o].sum(), reference = ref[o].radiosity.sum();
         const double bound = name.find("block") != std::string::npos ? 0.02 : 0.01;
         EXPECT_NEAR(solved / reference, 1.0, bound + 4 * ref[o].relativeError) << name;
     }

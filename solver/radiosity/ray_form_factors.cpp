@@ -37,8 +37,8 @@ Vec3 rayOrigin(const PatchSet& patches, size_t i, double u1, double u2, double u
 // some directions (a table top facing up, seen from the floor beneath), not in all of them.
 bool insideSolid(const PatchSet& patches, const RayScene& rays, size_t i, const Vec3& origin, int& cast) {
     const Vec3 n = patches.normal[i];
-    const Vec3 a = (std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(n).normalized();
-    const Vec3 b = n.cross(a);
+    Vec3 a, b;
+    orthonormalBasis(n, a, b);
     const double up = std::sin(5 * kPi / 180), along = std::cos(5 * kPi / 180);
     for (const Vec3& d : {n, (along * a + up * n).eval(), (up * n - along * a).eval(), (along * b + up * n).eval(),
                           (up * n - along * b).eval()}) {

@@ -18,15 +18,15 @@
 
 namespace penumbra {
 
-//
 // A patch partly covered by a solid resting on it (the floor under a block that stands across it)
 // would otherwise hold the mean over its whole area, the covered part's darkness included, and show
 // that to every patch that sees its uncovered part: the block's own face, beside it, read 10-14%
-// dark in its bottom row. A ray that meets a back face is followed by a second along the patch's
-// normal; if that meets a back face too, the origin lies inside a solid: it is dropped, the row is
-// the mean over the other origins, and `exposed` holds their share. Patches that emit (marked in
-// `emitting`) keep every origin: what a covered part emits goes into the solid, and their emitted
-// power stays that of their whole area.
+// dark in its bottom row. A ray that meets a back face is followed by five more from its origin,
+// along the patch's normal and in four directions 5 degrees above its plane; if all of them meet
+// back faces too, the origin lies inside a solid: it is dropped, the row is the mean over the other
+// origins, and `exposed` holds their share. Patches that emit (marked in `emitting`) keep every
+// origin: what a covered part emits goes into the solid, and their emitted power stays that of
+// their whole area.
 //
 // Same matrix layout as computeFormFactors (dense rows, back-face transfers), marked `sampled`.
 FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings,
