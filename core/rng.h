@@ -2,8 +2,11 @@
 // photon) draws its own reproducible stream whatever thread runs it.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <numeric>
+#include <utility>
+#include <vector>
 
 namespace penumbra {
 
@@ -79,6 +82,20 @@ inline int decorrelatedStratum(int k, int count) {
     int m = 7;
     while (std::gcd(m, count) != 1) m += 2;
     return int((int64_t(k) * m + 3) % count);
+}
+
+// The strata 0 .. count-1 in a random order (Fisher-Yates): stratum k of a sample's first part paired
+// with order[k] of its second, each part stratified and the pairing unbiased. A fixed permutation
+// (decorrelatedStratum) pairs the same strata every time, which biases any integrand whose two parts
+// interact, as a point's visibility depends on where it is and where it looks: under a low roof it
+// read 1.2% too few rays meeting the roof, whatever the seed, and the Cornell box's face in the short
+// block's shadow +2.1% (over six seeds; +0.6% over eight with this order). The same fixed
+// permutation shifted at random per row was no better there (+2.3%).
+inline void shuffledStrata(std::vector<int>& order, int count, Rng& rng) {
+    using std::size_t;
+    order.resize(size_t(count));
+    for (int k = 0; k < count; ++k) order[size_t(k)] = k;
+    for (int k = count - 1; k > 0; --k) std::swap(order[size_t(k)], order[size_t(rng.next() % uint32_t(k + 1))]);
 }
 
 }  // namespace penumbra

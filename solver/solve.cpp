@@ -447,9 +447,12 @@ SolveResult solveUncounted(const Scene& scene, const SolveOptions& options, cons
 std::vector<Rgb> objectRadiosity(const SolveResult& r, size_t objects) {
     std::vector<Rgb> sum(objects, Rgb::Zero());
     std::vector<double> area(objects, 0.0);
+    // Where part of a patch is hidden, B holds what the rest of the scene sees of it, not its mean.
+    const bool hidden = !r.F.seen.empty() && r.F.size() == r.patches.size() && r.system.size() == r.patches.size();
+    const std::vector<Rgb> mean = hidden ? meanRadiosity(r.system, r.F, r.solution.B) : std::vector<Rgb>();
     for (size_t i = 0; i < r.patches.size(); ++i) {
         const size_t o = size_t(r.patches.object[i]);
-        sum[o] += litArea(r, i) * r.solution.B[i];
+        sum[o] += litArea(r, i) * (hidden ? mean[i] : r.solution.B[i]);
         area[o] += r.patches.area[i];
     }
     for (size_t o = 0; o < objects; ++o) sum[o] = area[o] > 0 ? Rgb(sum[o] / area[o]) : Rgb::Zero();

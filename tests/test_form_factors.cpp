@@ -340,6 +340,68 @@ TEST(RayFormFactors, ASolidStandingOnAPatchCoversItsShareAndNoMore) {
     EXPECT_EQ(seen, 1);
 }
 
+TEST(RayFormFactors, APatchPartlyHiddenShowsTheSceneWhatItSeesAndKeepsItsMean) {
+    // A floor of four 1 m patches under a 20 m sky (E = 1), a one-sided black roof facing up 0.1 m over
+    // [0.25, 1]^2, most of one patch: from beneath, the roof shows its back face. Not a solid (its
+    // sides are open), so nothing is covered. At a floor point x, with F_r(x) the factor to the roof
+    // and F_s(x) to the sky (Howell's point-to-rectangle), the radiosity is B(x) = rho E (F_s - F_r),
+    // and the share of its directions that meet no back face, how much the scene sees of it, is
+    // v(x) = 1 - F_r. What the scene gathers from the patch is the mean of B weighted by v; what it
+    // absorbs and the report shows is the plain mean. Under the roof the two differ by half.
+    const Scene scene = test::sceneFromJson(R"({
+      "materials": {"sky": {"type": "diffuse", "reflectance": 0, "emission": 0.3183098861837907},
+                    "floor": {"type": "diffuse", "reflectance": 0.5},
+                    "black": {"type": "diffuse", "reflectance": 0}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "floor", "vertices": [[-1,0,-1],[-1,0,1],[1,0,1],[1,0,-1]]},
+        {"name": "sky", "type": "quad", "material": "sky", "vertices": [[-10,1,-10],[10,1,-10],[10,1,10],[-10,1,10]]},
+        {"name": "roof", "type": "quad", "material": "black",
+         "vertices": [[0.25,0.1,0.25],[0.25,0.1,1],[1,0.1,1],[1,0.1,0.25]]}]})");
+    SolveOptions o;
+    o.meshing.patchSize = 1.0;
+    o.formFactors.method = "rays";
+    o.formFactors.raysPerPatch = 4096;
+    o.grading.levels = 0;
+    const SolveResult r = solveScene(scene, o);
+    ASSERT_EQ(r.F.seen.size(), r.patches.size());
+    // The roof's patch: B from a share of about half its 4,096 rays, 1.6% standard error; 4% is 2.5 of them.
+    const std::vector<Rgb> mean = meanRadiosity(r.system, r.F, r.solution.B);
+    int under = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        if (scene.objects[size_t(r.patches.object[i])].name != "floor") continue;
+        const Vec3 c = r.patches.centroid[i];
+        const double x0 = std::floor(c.x()), z0 = std::floor(c.z());
+        double vB = 0, v = 0, b = 0;
+        const int grid = 40;
+        for (int a = 0; a < grid; ++a)
+            for (int d = 0; d < grid; ++d) {
+                const double x = x0 + (a + 0.5) / grid, z = z0 + (d + 0.5) / grid;
+                const double roof = test::pointToRectangle(0.25 - x, 1 - x, 0.25 - z, 1 - z, 0.1);
+                const double B = 0.5 * (test::pointToRectangle(-10 - x, 10 - x, -10 - z, 10 - z, 1) - roof);
+                vB += (1 - roof) * B;
+                v += 1 - roof;
+                b += B;
+            }
+        const double seenExact = vB / v, meanExact = b / (grid * grid), shareExact = v / (grid * grid);
+        EXPECT_EQ(r.F.exposed[i], 1.0f) << "an open roof covers nothing";
+        EXPECT_NEAR(r.F.seen[i], shareExact, 0.03) << "share of directions free of back faces at " << c.transpose();
+        EXPECT_NEAR(r.solution.B[i][0], seenExact, 0.04 * seenExact) << "what the scene sees at " << c.transpose();
+        EXPECT_NEAR(mean[i][0], meanExact, 0.04 * meanExact) << "the mean over the patch at " << c.transpose();
+        if (x0 == 0 && z0 == 0) {
+            ++under;
+            EXPECT_GT(seenExact, 1.4 * meanExact) << "the test tells the two apart";
+            EXPECT_TRUE(r.F.hasMeanRow(i));
+        }
+    }
+    EXPECT_EQ(under, 1);
+    // The report's floor is the plain mean, and the power adds up with the escaped light counted by rays.
+    double meanFloor = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i)
+        if (scene.objects[size_t(r.patches.object[i])].name == "floor") meanFloor += mean[i][0] / 4;
+    EXPECT_NEAR(objectRadiosity(r, scene.objects.size())[0][0], meanFloor, 1e-9);
+    test::expectBalanceByRays(scene, r, 5e-3);
+}
+
 TEST(RayFormFactors, AShadowOnALargePatchTakesItsShareOfTheLight) {
     // The lamp over the floor with the black square between them, the floor in four 1 m patches: each
     // patch's corner under the lamp, where it sees the lamp best, lies in the square's shadow. A pair's

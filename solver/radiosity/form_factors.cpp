@@ -275,10 +275,20 @@ FormFactorMatrix::FormFactorMatrix(size_t n, std::vector<uint64_t> rowStart, std
     if (n == 0) rowStart_.clear();
 }
 
+void FormFactorMatrix::setMeanRows(std::vector<uint64_t> start, std::vector<int32_t> column, std::vector<float> value) {
+    if (start.size() != n_ + 1 || column.size() != value.size() || start.back() != value.size())
+        throw Error("FormFactorMatrix: inconsistent mean rows");
+    meanStart_ = std::move(start);
+    meanColumn_ = std::move(column);
+    meanValue_ = std::move(value);
+}
+
 uint64_t FormFactorMatrix::bytes() const {
-    return isSparse()
-               ? uint64_t(value_.size()) * (sizeof(float) + sizeof(int32_t)) + rowStart_.size() * sizeof(uint64_t)
-               : formFactorMatrixBytes(n_);
+    const uint64_t mean = uint64_t(meanValue_.size()) * (sizeof(float) + sizeof(int32_t)) +
+                          meanStart_.size() * sizeof(uint64_t) + seen.size() * sizeof(float);
+    return mean + (isSparse() ? uint64_t(value_.size()) * (sizeof(float) + sizeof(int32_t)) +
+                                    rowStart_.size() * sizeof(uint64_t)
+                              : formFactorMatrixBytes(n_));
 }
 
 float FormFactorMatrix::operator()(size_t i, size_t j) const {

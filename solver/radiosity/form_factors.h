@@ -89,6 +89,19 @@ public:
     // part covered by a solid resting on it (a block standing on the floor: castFormFactors).
     // Row i then transports the uncovered part alone, so B[i] is the mean over that part.
     std::vector<float> exposed;
+    // Ray-cast rows only (else empty): of each patch's uncovered origins, the share whose ray met no
+    // back face. Below one, part of the patch is hidden from the rest of the scene, seen from it only
+    // through back faces (the floor under a shelf's open plinth): row i is then what the rest of the
+    // scene sees of the patch, and meanRow(i) the mean over its whole uncovered part
+    // (ray_form_factors.h). Where it is one, row i is both.
+    std::vector<float> seen;
+    bool hasMeanRow(size_t i) const { return i < seen.size() && seen[i] < 1; }
+    SparseRow meanRow(size_t i) const {
+        return {meanColumn_.data() + meanStart_[i], meanValue_.data() + meanStart_[i],
+                size_t(meanStart_[i + 1] - meanStart_[i])};
+    }
+    // The mean rows, compressed as the sparse rows are (empty where hasMeanRow is false).
+    void setMeanRows(std::vector<uint64_t> start, std::vector<int32_t> column, std::vector<float> value);
 
 private:
     size_t n_ = 0;
@@ -96,6 +109,9 @@ private:
     std::vector<uint64_t> rowStart_;
     std::vector<int32_t> column_;
     std::vector<float> value_;
+    std::vector<uint64_t> meanStart_;
+    std::vector<int32_t> meanColumn_;
+    std::vector<float> meanValue_;
 };
 
 // Bytes the dense matrix of n patches needs.

@@ -59,14 +59,16 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     for (size_t j = 0; j < analyticColumns.size() && j < n; ++j)
         if (analyticColumns[j]) analytic.push_back(j);
     std::vector<BackTransfer> back;
-    // Each row's entries (column, value), columns ascending, until they are packed into one matrix.
-    std::vector<std::vector<std::pair<int32_t, float>>> entries(n);
-    std::vector<float> exposed(n, 1.0f);
+    // Each row's entries (column, value), columns ascending, until they are packed into one matrix;
+    // the mean rows likewise, for the patches part of which is hidden.
+    std::vector<std::vector<std::pair<int32_t, float>>> entries(n), meanEntries(n);
+    std::vector<float> exposed(n, 1.0f), seen(n, 1.0f);
     const double lift = originLift(patches);
     const int side = stratumSide(settings.raysPerPatch);
     const int count = side * side;
     std::mutex backMutex;
     std::atomic<int64_t> analyticNanos{0};  // thread time in the analytic columns
+    std::atomic<size_t> hidden{0};          // patches with a mean row
     Progress progress("form factors (rays)", int64_t(n));
     parallelFor(
         int64_t(n),
@@ -79,41 +81,54 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             static thread_local std::vector<int> hits;
             if (hits.size() < n) hits.assign(n, 0);
             std::vector<int32_t> touched;
+            // Each origin and the front patch its ray met (-1: anything else), for the second rays.
+            std::vector<Vec3> origins(static_cast<size_t>(count));
+            std::vector<int32_t> landed(static_cast<size_t>(count));
+            std::vector<int> order;  // the direction stratum of each origin stratum
             for (int64_t ii = begin; ii < end; ++ii, progress.update()) {
                 const size_t i = size_t(ii);
                 Rng rng = streamRng(settings.seed, Stream::CastFormFactors, i);
                 const Vec3 n0 = patches.normal[i];
                 backHits.clear();
                 touched.clear();
-                int analyticHits = 0, inside = 0, followed = 0;
+                int analyticHits = 0, inside = 0, followed = 0, backs = 0;
                 const bool mayBeCovered = !(i < emitting.size() && emitting[i]);
+                shuffledStrata(order, count, rng);
                 for (int k = 0; k < count; ++k) {
-                    // Origins in one stratum of the patch, directions in another (a decorrelated
+                    // Origins in one stratum of the patch, directions in another (a random
                     // permutation of the strata), both jittered.
-                    const int a = k, b = decorrelatedStratum(k, count);
+                    const int a = k, b = order[size_t(k)];
                     const double u1 = ((a % side) + rng.uniform()) / side, u2 = ((a / side) + rng.uniform()) / side;
                     const double d1 = ((b % side) + rng.uniform()) / side, d2 = ((b / side) + rng.uniform()) / side;
                     const Vec3 origin = rayOrigin(patches, i, u1, u2, rng.uniform(), lift);
                     const Vec3 dir = cosineDirection(n0, d1, d2);
                     const Hit h = rays.intersect(origin, dir, 0, 1e30, RayView::Patches);
+                    origins[size_t(k)] = origin;
+                    landed[size_t(k)] = -1;
                     if (h.patch < 0) continue;  // out of the scene
                     const size_t j = size_t(h.patch);
                     if (patches.normal[j].dot(dir) >= 0) {
-                        if (mayBeCovered && insideSolid(patches, rays, i, origin, followed))
+                        if (mayBeCovered && insideSolid(patches, rays, i, origin, followed)) {
                             ++inside;
-                        else
+                        } else {
                             ++backHits[h.patch];
-                    } else if (j < analyticColumns.size() && analyticColumns[j])
+                            ++backs;
+                        }
+                    } else if (j < analyticColumns.size() && analyticColumns[j]) {
                         ++analyticHits;
-                    else if (hits[j]++ == 0)
-                        touched.push_back(int32_t(j));
+                    } else {
+                        landed[size_t(k)] = int32_t(j);
+                        if (hits[j]++ == 0) touched.push_back(int32_t(j));
+                    }
                 }
-                g_castRays.add(uint64_t(count + followed));
                 // The origins in the open, and their share of the patch (all of them but in a solid).
                 const int open = count - inside;
                 exposed[i] = float(open) / float(count);
                 std::vector<std::pair<int32_t, float>>& row = entries[i];
-                if (open == 0) continue;  // wholly inside a solid: no light reaches it
+                if (open == 0) {  // wholly inside a solid: no light reaches it
+                    g_castRays.add(uint64_t(count + followed));
+                    continue;
+                }
                 // The analytic columns, computed as the analytic matrix computes them (over the whole
                 // patch, whose covered part sees no source), then as a mean over the uncovered part.
                 double exact = 0;
@@ -140,29 +155,74 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 // A_i F(i -> back of j), with the light of the uncovered part, exposed[i] A_i.
                 for (const auto& [j, h] : backHits)
                     myBack.push_back({int(i), j, scale * patches.area[i] * double(h) / double(count)});
+                if (backs > 0) {
+                    // Part of the patch is hidden: what the rest of the scene sees is the light of each
+                    // point weighted by how much of the scene sees it, its share of directions that
+                    // meet no back face. That weight is a second ray from the origin, independent of
+                    // the first: an origin's light counts where its second ray meets no back face,
+                    // over the origins whose first ray met none. The row above stays as the mean.
+                    const int unhidden = open - backs;
+                    seen[i] = float(unhidden) / float(open);
+                    ++hidden;
+                    meanEntries[i].swap(row);
+                    int second = 0;
+                    touched.clear();
+                    for (int k = 0; k < count; ++k) {
+                        const int32_t j = landed[size_t(k)];
+                        if (j < 0) continue;
+                        const Vec3 dir = cosineDirection(n0, rng.uniform(), rng.uniform());
+                        const Hit h = rays.intersect(origins[size_t(k)], dir, 0, 1e30, RayView::Patches);
+                        ++second;
+                        if (h.patch >= 0 && patches.normal[size_t(h.patch)].dot(dir) >= 0) continue;
+                        if (hits[size_t(j)]++ == 0) touched.push_back(j);
+                    }
+                    followed += second;
+                    if (unhidden > 0) {
+                        // The analytic columns by their mean over the patch, which the hidden part,
+                        // seeing little of any source, adds almost nothing to.
+                        for (const auto& [j, f] : meanEntries[i])
+                            if (j < int32_t(analyticColumns.size()) && analyticColumns[size_t(j)])
+                                row.push_back({j, float(double(f) * open / unhidden)});
+                        for (int32_t j : touched) row.push_back({j, float(scale * hits[size_t(j)] / unhidden)});
+                        std::sort(row.begin(), row.end());
+                    }
+                    for (int32_t j : touched) hits[size_t(j)] = 0;
+                }
+                g_castRays.add(uint64_t(count + followed));
             }
             std::lock_guard<std::mutex> lock(backMutex);
             back.insert(back.end(), myBack.begin(), myBack.end());
         },
         8);
     progress.done();
-    std::vector<uint64_t> start(n + 1, 0);
-    for (size_t i = 0; i < n; ++i) start[i + 1] = start[i] + entries[i].size();
-    std::vector<int32_t> column(start[n]);
-    std::vector<float> value(start[n]);
-    for (size_t i = 0; i < n; ++i) {
-        for (size_t k = 0; k < entries[i].size(); ++k)
-            column[start[i] + k] = entries[i][k].first, value[start[i] + k] = entries[i][k].second;
-        std::vector<std::pair<int32_t, float>>().swap(entries[i]);
-    }
+    auto pack = [n](std::vector<std::vector<std::pair<int32_t, float>>>& rows, std::vector<uint64_t>& start,
+                    std::vector<int32_t>& column, std::vector<float>& value) {
+        start.assign(n + 1, 0);
+        for (size_t i = 0; i < n; ++i) start[i + 1] = start[i] + rows[i].size();
+        column.resize(start[n]);
+        value.resize(start[n]);
+        for (size_t i = 0; i < n; ++i) {
+            for (size_t k = 0; k < rows[i].size(); ++k)
+                column[start[i] + k] = rows[i][k].first, value[start[i] + k] = rows[i][k].second;
+            std::vector<std::pair<int32_t, float>>().swap(rows[i]);
+        }
+    };
+    std::vector<uint64_t> start, meanStart;
+    std::vector<int32_t> column, meanColumn;
+    std::vector<float> value, meanValue;
+    pack(entries, start, column, value);
+    pack(meanEntries, meanStart, meanColumn, meanValue);
     FormFactorMatrix F(n, std::move(start), std::move(column), std::move(value));
     F.sampled = true;
     F.reciprocal = false;
     F.backTransfers = std::move(back);
     F.exposed = std::move(exposed);
+    F.seen = std::move(seen);
+    F.setMeanRows(std::move(meanStart), std::move(meanColumn), std::move(meanValue));
     std::sort(F.backTransfers.begin(), F.backTransfers.end(), [](const BackTransfer& a, const BackTransfer& b) {
         return a.from != b.from ? a.from < b.from : a.to < b.to;
     });
+    if (hidden) logInfo("form factors (rays): ", size_t(hidden), " patches partly hidden behind back faces");
     logInfo("form factors (rays): ", n, " patches, ", count, " rays each, ", uint64_t(count) * n, " rays in ",
             timer.seconds(), " s; ", F.entries(), " entries stored, ", double(F.bytes()) / (1 << 20), " MiB; ",
             analytic.size(), " analytic columns (small sources) took ", double(analyticNanos) * 1e-9 / threadCount(),

@@ -28,6 +28,20 @@ namespace penumbra {
 // origin: what a covered part emits goes into the solid, and their emitted power stays that of
 // their whole area.
 //
+// A patch part of which is hidden from the rest of the scene without being inside a solid (the floor
+// under a shelf's plinth, open at its sides, seen from there only through the plinth's back faces)
+// holds a dark part and a lit one, and the rest of the scene sees the lit one. If any of its rays met a
+// back face, each origin whose ray met a front patch casts a second, independent cosine ray: row i
+// is then what the rest of the scene gathers from it, the mean of B weighted by v, the share of a
+// point's directions that meet no back face (an origin's light counts where its second ray meets
+// none, over the origins whose first ray met none), and the first rays' row is kept as its mean row
+// (FormFactorMatrix::meanRow), for what it absorbs and what the report shows. The building's office
+// ceilings had read 5-7% dark from their floors' hidden parts: its 147 large surfaces went from a
+// median 1.12% to 0.64% off the path-traced reference, 69 to 88 of them within 1%.
+//
+// Origins and directions are each stratified, and paired by a random permutation per row
+// (shuffledStrata, core/rng.h).
+//
 // Same matrix layout as computeFormFactors (dense rows, back-face transfers), marked `sampled`.
 FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings,
                                  const std::vector<char>& analyticColumns = {}, const std::vector<char>& emitting = {});

@@ -45,21 +45,26 @@ ChannelPlanes::ChannelPlanes(const std::vector<Rgb>& B) {
 // target_clones builds the loop for AVX2 with FMA as well as for the baseline, chosen when the
 // program loads. The sums stay in double: summing in float (twice the vector width) was measured
 // 1.3x faster but loses a 1e-6 lamp beside a 1e6 one (the twelve-orders test).
-__attribute__((target_clones("arch=haswell", "default"))) Rgb rowIrradiance(const FormFactorMatrix& F, size_t i,
-                                                                            const ChannelPlanes& B) {
+namespace {
+Rgb sparseIrradiance(const FormFactorMatrix::SparseRow& r, const ChannelPlanes& B) {
     const double *b0 = B.c[0].data(), *b1 = B.c[1].data(), *b2 = B.c[2].data();
     double h0 = 0, h1 = 0, h2 = 0;
-    if (F.isSparse()) {
-        const FormFactorMatrix::SparseRow r = F.sparseRow(i);
-        for (size_t k = 0; k < r.count; ++k) {
-            const double f = r.value[k];
-            const size_t j = size_t(r.column[k]);
-            h0 += f * b0[j];
-            h1 += f * b1[j];
-            h2 += f * b2[j];
-        }
-        return Rgb(h0, h1, h2);
+    for (size_t k = 0; k < r.count; ++k) {
+        const double f = r.value[k];
+        const size_t j = size_t(r.column[k]);
+        h0 += f * b0[j];
+        h1 += f * b1[j];
+        h2 += f * b2[j];
     }
+    return Rgb(h0, h1, h2);
+}
+}  // namespace
+
+__attribute__((target_clones("arch=haswell", "default"))) Rgb rowIrradiance(const FormFactorMatrix& F, size_t i,
+                                                                            const ChannelPlanes& B) {
+    if (F.isSparse()) return sparseIrradiance(F.sparseRow(i), B);
+    const double *b0 = B.c[0].data(), *b1 = B.c[1].data(), *b2 = B.c[2].data();
+    double h0 = 0, h1 = 0, h2 = 0;
     const float* row = F.row(i);
     const size_t n = F.size();
 #pragma omp simd reduction(+ : h0, h1, h2)
@@ -72,17 +77,31 @@ __attribute__((target_clones("arch=haswell", "default"))) Rgb rowIrradiance(cons
     return Rgb(h0, h1, h2);
 }
 
-std::vector<Rgb> gatherIrradiance(const RadiositySystem& s, const FormFactorMatrix& F, const std::vector<Rgb>& B) {
+std::vector<Rgb> gatherIrradiance(const RadiositySystem& s, const FormFactorMatrix& F, const std::vector<Rgb>& B,
+                                  bool mean) {
     const size_t n = F.size();
     const ChannelPlanes planes(B);
     std::vector<Rgb> H(n);
     parallelFor(
         int64_t(n),
         [&](int64_t begin, int64_t end) {
-            for (int64_t i = begin; i < end; ++i) H[size_t(i)] = irradianceAt(s, F, size_t(i), B, planes);
+            for (int64_t ii = begin; ii < end; ++ii) {
+                const size_t i = size_t(ii);
+                H[i] = mean && F.hasMeanRow(i) ? sparseIrradiance(F.meanRow(i), planes) + s.transport.incoming(i, B)
+                                               : irradianceAt(s, F, i, B, planes);
+            }
         },
         16);
     return H;
+}
+
+std::vector<Rgb> meanRadiosity(const RadiositySystem& s, const FormFactorMatrix& F, const std::vector<Rgb>& B) {
+    if (F.seen.empty()) return B;
+    const std::vector<Rgb> H = gatherIrradiance(s, F, B, true);
+    std::vector<Rgb> mean = B;
+    for (size_t i = 0; i < s.size(); ++i)
+        if (F.hasMeanRow(i)) mean[i] = s.emission[i] + s.reflectance[i] * H[i];
+    return mean;
 }
 
 double gaussSeidelPass(const RadiositySystem& s, const FormFactorMatrix& F, std::vector<Rgb>& B) {
@@ -109,7 +128,12 @@ double relativeResidual(const RadiositySystem& s, const std::vector<Rgb>& B, con
 
 PowerBalance powerBalance(const RadiositySystem& s, const FormFactorMatrix& F, const std::vector<Rgb>& B) {
     const size_t n = s.size();
-    const std::vector<Rgb> H = gatherIrradiance(s, F, B);
+    // Per patch what it absorbs and sends out is its mean over its area; what the rest of the scene
+    // gathers from it is B.
+    const std::vector<Rgb> H = gatherIrradiance(s, F, B, true);
+    std::vector<Rgb> mean = B;
+    for (size_t i = 0; i < n; ++i)
+        if (F.hasMeanRow(i)) mean[i] = s.emission[i] + s.reflectance[i] * H[i];
     const bool transport = !s.transport.empty();
     PowerBalance p;
     p.emitted.resize(n);
@@ -118,7 +142,7 @@ PowerBalance powerBalance(const RadiositySystem& s, const FormFactorMatrix& F, c
     std::vector<int> firstPatch;  // of each object, to book what an object absorbs as a whole
     for (size_t i = 0; i < n; ++i) {
         p.emitted[i] = s.area[i] * s.emission[i];
-        leaving += s.area[i] * B[i];
+        leaving += s.area[i] * mean[i];
         if (size_t(s.object[i]) >= firstPatch.size()) firstPatch.resize(size_t(s.object[i]) + 1, -1);
         if (firstPatch[size_t(s.object[i])] < 0) firstPatch[size_t(s.object[i])] = int(i);
         // With specular transport, light reaching a mirror or glass patch is passed on (or lost) by
@@ -134,8 +158,17 @@ PowerBalance powerBalance(const RadiositySystem& s, const FormFactorMatrix& F, c
                 p.absorbed[size_t(firstPatch[size_t(s.transport.lossObject[k])])] += power;
                 arriving += power;
             }
+    // A patch with a hidden part sends to back faces what leaves it and is not seen, A_i (mean_i -
+    // seen_i B_i), which is the light of its origins whose second ray met a back face (never below
+    // zero: ray_form_factors.cpp), shared among its back-face transfers as its first rays met them.
+    std::vector<double> backShare(F.seen.empty() ? 0 : n, 0.0);
+    for (const BackTransfer& t : F.backTransfers)
+        if (F.hasMeanRow(size_t(t.from))) backShare[size_t(t.from)] += t.areaFactor;
     for (const BackTransfer& t : F.backTransfers) {
-        const Rgb power = t.areaFactor * B[size_t(t.from)];
+        const size_t i = size_t(t.from);
+        const Rgb power = F.hasMeanRow(i)
+                              ? Rgb(t.areaFactor / backShare[i] * s.area[i] * (mean[i] - double(F.seen[i]) * B[i]))
+                              : Rgb(t.areaFactor * B[i]);
         p.absorbed[size_t(t.to)] += power;
         arriving += power;
     }

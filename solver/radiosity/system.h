@@ -61,8 +61,15 @@ inline Rgb irradianceAt(const RadiositySystem& s, const FormFactorMatrix& F, siz
 // of A F sum to at most the areas (reciprocity, rows summing to at most one).
 double gaussSeidelPass(const RadiositySystem& s, const FormFactorMatrix& F, std::vector<Rgb>& B);
 
-// Irradiance H_i arriving at every front face, W/m^2.
-std::vector<Rgb> gatherIrradiance(const RadiositySystem& s, const FormFactorMatrix& F, const std::vector<Rgb>& B);
+// Irradiance H_i arriving at every front face, W/m^2: what the patch's rows gather, or with `mean`, its
+// mean over the patch where part of it is hidden (FormFactorMatrix::seen).
+std::vector<Rgb> gatherIrradiance(const RadiositySystem& s, const FormFactorMatrix& F, const std::vector<Rgb>& B,
+                                  bool mean = false);
+
+// Each patch's radiosity as the mean over its area, for the solution B: B itself, but where part of a
+// patch is hidden from the rest of the scene (FormFactorMatrix::seen), B holds what the rest sees of
+// it and the mean is E + rho times its mean row's irradiance.
+std::vector<Rgb> meanRadiosity(const RadiositySystem& s, const FormFactorMatrix& F, const std::vector<Rgb>& B);
 
 // Relative residual: sum_i A_i |E_i + rho_i H_i - B_i| over sum_i A_i E_i, all channels together.
 // It is the fraction of the emitted power not yet accounted for (the unshot power).
