@@ -340,6 +340,49 @@ TEST(RayFormFactors, ASolidStandingOnAPatchCoversItsShareAndNoMore) {
     EXPECT_EQ(seen, 1);
 }
 
+TEST(RayFormFactors, APatchWhollyInASolidCastsNoRaysOfItsOwn) {
+    // One 1 m floor patch wholly under a 2 mm box open at the bottom, a sky above. The patch is covered
+    // (no light reaches it, none leaves it), found by its centre and corners alone (five points, five
+    // rays each): without that test it would cast its 1,024 rays and follow each into the box with
+    // five more.
+    const Scene scene = test::sceneFromJson(R"({
+      "materials": {"sky": {"type": "diffuse", "reflectance": 0, "emission": 0.3183098861837907},
+                    "floor": {"type": "diffuse", "reflectance": 0.5},
+                    "black": {"type": "diffuse", "reflectance": 0}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "floor", "vertices": [[0,0,0],[0,0,1],[1,0,1],[1,0,0]]},
+        {"name": "sky", "type": "quad", "material": "sky", "vertices": [[-2,1,-2],[3,1,-2],[3,1,3],[-2,1,3]]},
+        {"name": "box_top", "type": "quad", "material": "black",
+         "vertices": [[-0.05,0.002,-0.05],[-0.05,0.002,1.05],[1.05,0.002,1.05],[1.05,0.002,-0.05]]},
+        {"name": "box_left", "type": "quad", "material": "black",
+         "vertices": [[-0.05,0,-0.05],[-0.05,0,1.05],[-0.05,0.002,1.05],[-0.05,0.002,-0.05]]},
+        {"name": "box_right", "type": "quad", "material": "black",
+         "vertices": [[1.05,0,-0.05],[1.05,0.002,-0.05],[1.05,0.002,1.05],[1.05,0,1.05]]},
+        {"name": "box_front", "type": "quad", "material": "black",
+         "vertices": [[-0.05,0,-0.05],[-0.05,0.002,-0.05],[1.05,0.002,-0.05],[1.05,0,-0.05]]},
+        {"name": "box_back", "type": "quad", "material": "black",
+         "vertices": [[-0.05,0,1.05],[1.05,0,1.05],[1.05,0.002,1.05],[-0.05,0.002,1.05]]}]})");
+    SolveOptions o;
+    o.meshing.patchSize = 1.0;
+    o.formFactors.method = "rays";
+    o.formFactors.raysPerPatch = 1024;
+    o.grading.levels = 0;
+    const SolveResult r = solveScene(scene, o);
+    size_t floors = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i)
+        if (r.patches.object[i] == 0) {
+            ++floors;
+            EXPECT_EQ(r.F.exposed[i], 0.0f);
+            EXPECT_EQ(r.solution.B[i][0], 0.0);
+            EXPECT_EQ(r.F.sparseRow(i).count, 0u);
+        }
+    ASSERT_EQ(floors, 1u);
+    // The others cast 1,024 each, and a few follow a grazing ray that meets a back face: fewer than the
+    // floor's own 1,024 (with 5 more for each, 6,144) in all.
+    EXPECT_LT(r.counters.at("form_factors.cast_rays"), 1024 * r.patches.size());
+    EXPECT_EQ(objectRadiosity(r, scene.objects.size())[0][0], 0.0);
+}
+
 TEST(RayFormFactors, APatchPartlyHiddenShowsTheSceneWhatItSeesAndKeepsItsMean) {
     // A floor of four 1 m patches under a 20 m sky (E = 1), a one-sided black roof facing up 0.1 m over
     // [0.25, 1]^2, most of one patch: from beneath, the roof shows its back face. Not a solid (its

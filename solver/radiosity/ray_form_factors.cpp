@@ -49,6 +49,21 @@ bool insideSolid(const PatchSet& patches, const RayScene& rays, size_t i, const 
     return true;
 }
 
+// Whether all of patch i lies inside one solid (the floor under the middle of a block): its centre and
+// its corners (pulled in from the edge as ray origins are) all do, by insideSolid. Asked at a patch's
+// first origin found inside a solid; a patch wholly inside then costs about 30 rays instead of its
+// rays' six each. Exact for convex solids (every box of a scene); a notch in a
+// solid narrower than the patch, none of whose corners it reaches, would be taken as covered too.
+bool whollyInside(const PatchSet& patches, const RayScene& rays, size_t i, double lift, int& cast) {
+    const Vec3 lifted = lift * patches.normal[i];
+    if (!insideSolid(patches, rays, i, patches.centroid[i] + lifted, cast)) return false;
+    for (int k = 0; k < patches.cornerCount[i]; ++k) {
+        const Vec3& c = patches.corners[i][size_t(k)];
+        if (!insideSolid(patches, rays, i, c + 1e-3 * (patches.centroid[i] - c) + lifted, cast)) return false;
+    }
+    return true;
+}
+
 }  // namespace
 
 FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings,
@@ -92,6 +107,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 backHits.clear();
                 touched.clear();
                 int analyticHits = 0, inside = 0, followed = 0, backs = 0;
+                int wholly = 0;  // the rays cast before the patch was found wholly inside a solid
                 const bool mayBeCovered = !(i < emitting.size() && emitting[i]);
                 shuffledStrata(order, count, rng);
                 for (int k = 0; k < count; ++k) {
@@ -109,7 +125,11 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     const size_t j = size_t(h.patch);
                     if (patches.normal[j].dot(dir) >= 0) {
                         if (mayBeCovered && insideSolid(patches, rays, i, origin, followed)) {
-                            ++inside;
+                            // At the first origin inside a solid, whether the whole patch is.
+                            if (++inside == 1 && whollyInside(patches, rays, i, lift, followed)) {
+                                wholly = k + 1;
+                                break;
+                            }
                         } else {
                             ++backHits[h.patch];
                             ++backs;
@@ -120,6 +140,12 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                         landed[size_t(k)] = int32_t(j);
                         if (hits[j]++ == 0) touched.push_back(int32_t(j));
                     }
+                }
+                if (wholly) {  // no light reaches it, none leaves it
+                    for (int32_t j : touched) hits[size_t(j)] = 0;
+                    exposed[i] = 0;
+                    g_castRays.add(uint64_t(wholly + followed));
+                    continue;
                 }
                 // The origins in the open, and their share of the patch (all of them but in a solid).
                 const int open = count - inside;
