@@ -64,7 +64,10 @@ case "${1:-}" in
     (cd build && ctest --output-on-failure -j 2 --timeout 900)
     # The same tests, built with AddressSanitizer and UndefinedBehaviorSanitizer.
     # (GCC 12 reports false maybe-uninitialized warnings under the sanitizers: no -Werror there.)
-    build build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPENUMBRA_SANITIZE=ON -DPENUMBRA_WERROR=OFF
+    # -O1 -g1 (line tables, enough for the sanitizers' stack traces): measured on 2 cores, the
+    # sanitizer build takes 318 s instead of 583 s at -O2 -g, its tests 1112 s instead of 1024 s.
+    build build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPENUMBRA_SANITIZE=ON -DPENUMBRA_WERROR=OFF \
+      "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG"
     (cd build-sanitize && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
        ctest --output-on-failure -j 2 --timeout 1800 -LE slow)
     ;;

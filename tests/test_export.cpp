@@ -50,7 +50,7 @@ TEST(Export, GltfReloadsWithOneColourPerVertexInItsStatedToneMapping) {
     const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
     const std::string dir = test::tempDir() + "/export";
     fs::remove_all(dir);
-    ASSERT_EQ(runCli(cat("solve ", scene, " --out ", dir, " --patches 300")), 0);
+    ASSERT_EQ(runCli(cat("solve ", scene, " --out ", dir, " --patches 300 --form-factors rays")), 0);
     ASSERT_EQ(runCli(cat("export ", dir, " --out ", dir, "/scene.glb")), 0);
     ASSERT_EQ(runCli(cat("export ", dir, " --out ", dir, "/scene.ply")), 0);
 
