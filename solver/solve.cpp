@@ -123,12 +123,13 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
 
     Timer ffTimer;
     r.F = FormFactorMatrix();  // the previous round's matrix goes before the next one is made
+    HitReadings readings;
     if (!r.rays) r.rays = buildRayScene(scene, r.patches);  // else graded with it (contact_grading.h)
     r.system = buildSystem(scene, r.patches);
     if (castsFormFactors(options)) {
         std::vector<char> emitting(n, 0);
         for (size_t i = 0; i < n; ++i) emitting[i] = r.system.emission[i].maxCoeff() > 0;
-        r.F = castFormFactors(r.patches, *r.rays, options.formFactors, smallSources(r.system), emitting);
+        r.F = castFormFactors(r.patches, *r.rays, options.formFactors, smallSources(r.system), emitting, &readings);
         // What a patch's light leaves from and lands on is its uncovered part (ray_form_factors.h).
         size_t covered = 0;
         for (size_t i = 0; i < n; ++i) {
@@ -165,6 +166,16 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
         logInfo("no mirrors or glass in the scene: no specular transport");
     }
     checkSteadyState(scene, r.system, rows);
+    if (!readings.rows.empty()) {
+        // Where rays landed close, they read the light where they landed, by the slopes of a first
+        // solve (ray_form_factors.h); the solve then starts again.
+        Timer readTimer;
+        const auto solver = makeSolver(options.solver);
+        const std::vector<Rgb> first = solver->solve(r.F, r.system, options.solverSettings, {}).B;
+        readLightWhereRaysLand(r.F, r.patches, readings, first);
+        readings = HitReadings();
+        r.secondsSolve += readTimer.seconds();
+    }
     solveBuiltMatrix(options, observer, r);
 }
 

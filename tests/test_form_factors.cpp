@@ -8,6 +8,8 @@
 
 #include "fixtures.h"
 #include "solver/radiosity/form_factor_kernel.h"
+#include "solver/radiosity/ray_form_factors.h"
+#include "solver/tracer.h"
 
 using namespace penumbra;
 
@@ -467,4 +469,49 @@ TEST(RayFormFactors, AShadowOnALargePatchTakesItsShareOfTheLight) {
         }
     exact *= 0.5 * kPi * 10 * (0.04 / (lampGrid * lampGrid)) / (floorGrid * floorGrid);
     EXPECT_NEAR(solved, exact, 0.01 * exact);
+}
+
+// A small patch 1 cm above a floor whose light rises linearly across it, B(x) = 1 + x, reads the
+// cosine-weighted mean of B over the floor below it: 1 + x0 at its foot x0 (the linear term averages
+// out about the foot; the floor's edges, 0.4 m away or more, hold under 0.1% of the kernel). Its foot
+// lies 3.5 cm off the centre of a 12.5 cm floor patch, whose mean 1 + x_c the patch's rays read
+// wherever they land without readLightWhereRaysLand: 2.4% low (ray_form_factors.h).
+TEST(RayFormFactors, ARayReadsTheLightWhereItLandsOnAPatch) {
+    const double x0 = 0.0975, z0 = 0.0625, h = 0.01, w = 0.002;
+    const Scene scene = test::sceneFromJson(cat(R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "m", "vertices": [[-0.5,0,-0.5],[-0.5,0,0.5],[0.5,0,0.5],[0.5,0,-0.5]]},
+        {"name": "receiver", "type": "quad", "material": "m", "vertices": [[)",
+                                                x0 - w, ",", h, ",", z0 - w, "],[", x0 + w, ",", h, ",", z0 - w, "],[",
+                                                x0 + w, ",", h, ",", z0 + w, "],[", x0 - w, ",", h, ",", z0 + w,
+                                                "]]}]}"));
+    MeshingOptions meshing;
+    meshing.patchSize = 0.125;
+    const PatchSet patches = meshScene(scene, meshing);
+    ASSERT_EQ(patches.size(), 65u) << "an 8 x 8 floor and the receiver";
+    const auto rays = buildRayScene(scene, patches);
+    FormFactorSettings settings;
+    settings.raysPerPatch = 16384;
+    HitReadings readings;
+    FormFactorMatrix F = castFormFactors(patches, *rays, settings, {}, {}, &readings);
+    std::vector<Rgb> B(patches.size(), Rgb::Zero());
+    size_t receiver = 0;
+    for (size_t i = 0; i < patches.size(); ++i) {
+        if (scene.objects[size_t(patches.object[i])].name == "receiver")
+            receiver = i;
+        else
+            B[i] = Rgb::Constant(1 + patches.centroid[i].x());
+    }
+    auto read = [&](const FormFactorMatrix& m) {
+        double light = 0, share = 0;
+        m.forEachInRow(receiver, [&](size_t j, float f) { light += f * B[j][0], share += f; });
+        return light / share;
+    };
+    const double constant = read(F);
+    const std::vector<double> sums = rowSums(F);
+    readLightWhereRaysLand(F, patches, readings, B);
+    EXPECT_NEAR(read(F), 1 + x0, 0.002 * (1 + x0)) << "the patches' means read where each ray landed";
+    EXPECT_LT(constant, 1 + x0 - 0.01) << "the setting tells the two apart";
+    const std::vector<double> after = rowSums(F);
+    for (size_t i = 0; i < sums.size(); ++i) EXPECT_NEAR(after[i], sums[i], 1e-5) << "light moves between columns";
 }

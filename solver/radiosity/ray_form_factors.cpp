@@ -1,6 +1,9 @@
 #include "solver/radiosity/ray_form_factors.h"
 
 #include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdlib>
 #include <atomic>
 #include <map>
 #include <mutex>
@@ -64,10 +67,111 @@ bool whollyInside(const PatchSet& patches, const RayScene& rays, size_t i, doubl
     return true;
 }
 
+// A ray that lands within this many of its patch's radii of its origin sees that patch's near part
+// more than its far part (HitReadings).
+constexpr double kNearRadii = 4;
+
+// Rows of (column, value) pairs, columns ascending, compressed (and emptied).
+void packRows(std::vector<std::vector<std::pair<int32_t, float>>>& rows, std::vector<uint64_t>& start,
+              std::vector<int32_t>& column, std::vector<float>& value) {
+    const size_t n = rows.size();
+    start.assign(n + 1, 0);
+    for (size_t i = 0; i < n; ++i) start[i + 1] = start[i] + rows[i].size();
+    column.resize(start[n]);
+    value.resize(start[n]);
+    for (size_t i = 0; i < n; ++i) {
+        for (size_t k = 0; k < rows[i].size(); ++k)
+            column[start[i] + k] = rows[i][k].first, value[start[i] + k] = rows[i][k].second;
+        std::vector<std::pair<int32_t, float>>().swap(rows[i]);
+    }
+}
+
+// The least-squares slope weights of every patch (HitReadings): its neighbours are the patches of
+// the same object that share a corner with it, face within 30 degrees of it, and are not wholly
+// inside a solid; centroids are those of the uncovered parts.
+void slopeWeights(const PatchSet& p, const std::vector<float>& exposed, HitReadings& h) {
+    const size_t n = p.size();
+    h.start.assign(n + 1, 0);
+    if (p.cornerVertex.size() != n) return;
+    std::vector<std::vector<int>> around(p.vertices.size());
+    for (size_t i = 0; i < n; ++i)
+        for (int k = 0; k < p.cornerCount[i]; ++k)
+            if (p.cornerVertex[i][size_t(k)] >= 0) around[size_t(p.cornerVertex[i][size_t(k)])].push_back(int(i));
+    const double crease = std::cos(30 * kPi / 180);
+    std::vector<int> near;
+    std::vector<std::array<double, 2>> d;
+    for (size_t j = 0; j < n; ++j) {
+        near.clear();
+        if (exposed[j] > 0)
+            for (int c = 0; c < p.cornerCount[j]; ++c) {
+                const int vertex = p.cornerVertex[j][size_t(c)];
+                if (vertex < 0) continue;
+                for (int k : around[size_t(vertex)])
+                    if (size_t(k) != j && exposed[size_t(k)] > 0 && p.normal[size_t(k)].dot(p.normal[j]) >= crease)
+                        near.push_back(k);
+            }
+        std::sort(near.begin(), near.end());
+        near.erase(std::unique(near.begin(), near.end()), near.end());
+        const Vec3 cj = h.uncoveredCentroid(p, j);
+        double m00 = 0, m01 = 0, m11 = 0;
+        d.resize(near.size());
+        for (size_t a = 0; a < near.size(); ++a) {
+            const Vec3 offset = h.uncoveredCentroid(p, size_t(near[a])) - cj;
+            d[a] = {offset.dot(h.tangentU[j]), offset.dot(h.tangentV[j])};
+            m00 += d[a][0] * d[a][0], m01 += d[a][0] * d[a][1], m11 += d[a][1] * d[a][1];
+        }
+        // A row of patches one wide has no slope across it: a little regularisation keeps M invertible.
+        const double lambda = 1e-6 * (m00 + m11) + 1e-300;
+        m00 += lambda, m11 += lambda;
+        const double det = m00 * m11 - m01 * m01;
+        for (size_t a = 0; a < near.size(); ++a) {
+            h.neighbour.push_back(near[a]);
+            h.qu.push_back(float((m11 * d[a][0] - m01 * d[a][1]) / det));
+            h.qv.push_back(float((m00 * d[a][1] - m01 * d[a][0]) / det));
+        }
+        h.start[j + 1] = uint32_t(h.neighbour.size());
+    }
+}
+
+// Row `row` with its near hits read where they land: a hit of weight w at offset x from patch j's
+// uncovered centroid moves w limit_j (q_k . x) from column j to each neighbour k. Columns ascending.
+void foldNearHits(FormFactorMatrix::SparseRow row, const std::vector<HitReadings::Near>& hits, const HitReadings& h,
+                  const std::vector<float>& limit, std::vector<std::pair<int32_t, float>>& out) {
+    out.clear();
+    for (size_t k = 0; k < row.count; ++k) out.push_back({row.column[k], row.value[k]});
+    for (const HitReadings::Near& hit : hits) {
+        const size_t j = size_t(hit.patch);
+        if (limit[j] <= 0) continue;
+        const double u = limit[j] * (double(hit.u) - double(hit.weight) * h.shift[j][0]);
+        const double v = limit[j] * (double(hit.v) - double(hit.weight) * h.shift[j][1]);
+        double moved = 0;
+        for (uint32_t a = h.start[j]; a < h.start[j + 1]; ++a) {
+            const double w = u * h.qu[a] + v * h.qv[a];
+            out.push_back({h.neighbour[a], float(w)});
+            moved += w;
+        }
+        out.push_back({hit.patch, float(-moved)});
+    }
+    std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    size_t kept = 0;
+    for (size_t k = 0; k < out.size(); ++k) {
+        if (kept > 0 && out[kept - 1].first == out[k].first)
+            out[kept - 1].second += out[k].second;
+        else
+            out[kept++] = out[k];
+    }
+    out.resize(kept);
+}
+
 }  // namespace
 
+Vec3 HitReadings::uncoveredCentroid(const PatchSet& p, size_t i) const {
+    return p.centroid[i] + double(shift[i][0]) * tangentU[i] + double(shift[i][1]) * tangentV[i];
+}
+
 FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings,
-                                 const std::vector<char>& analyticColumns, const std::vector<char>& emitting) {
+                                 const std::vector<char>& analyticColumns, const std::vector<char>& emitting,
+                                 HitReadings* readings) {
     Timer timer;
     const size_t n = patches.size();
     std::vector<size_t> analytic;
@@ -78,6 +182,17 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     // the mean rows likewise, for the patches part of which is hidden.
     std::vector<std::vector<std::pair<int32_t, float>>> entries(n), meanEntries(n);
     std::vector<float> exposed(n, 1.0f), seen(n, 1.0f);
+    // Per row (and mean row), its near hits; per patch, its tangent frame and the offset of its
+    // uncovered part's centroid in it.
+    HitReadings local;
+    HitReadings& read = readings ? *readings : local;
+    read = HitReadings();
+    const double nearRadii = readings ? kNearRadii : 0;
+    read.rows.resize(n), read.meanRows.resize(n);
+    read.tangentU.resize(n), read.tangentV.resize(n);
+    for (size_t i = 0; i < n; ++i) orthonormalBasis(patches.normal[i], read.tangentU[i], read.tangentV[i]);
+    read.shift.assign(n, {0.0f, 0.0f});
+    const std::vector<Vec3>&tangentU = read.tangentU, &tangentV = read.tangentV;
     const double lift = originLift(patches);
     const int side = stratumSide(settings.raysPerPatch);
     const int count = side * side;
@@ -100,6 +215,28 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             std::vector<Vec3> origins(static_cast<size_t>(count));
             std::vector<int32_t> landed(static_cast<size_t>(count));
             std::vector<int> order;  // the direction stratum of each origin stratum
+            // Where each origin's ray landed on its front patch near enough to read the light at that
+            // point (kNearRadii), the offset in that patch's frame; and each origin inside a solid.
+            std::vector<char> isNear(static_cast<size_t>(count)), isInside(static_cast<size_t>(count));
+            std::vector<std::array<float, 2>> offset(static_cast<size_t>(count));
+            static thread_local std::vector<HitReadings::Near> sums;
+            if (sums.size() < n) sums.assign(n, HitReadings::Near{-1, 0, 0, 0});
+            std::vector<int32_t> nearTouched;
+            // The near hits among the origins that `counts`, each of weight w.
+            auto collectNear = [&](const auto& counts, double w, std::vector<HitReadings::Near>& out) {
+                out.clear();
+                nearTouched.clear();
+                for (int k = 0; k < count; ++k) {
+                    if (!isNear[size_t(k)] || !counts(k)) continue;
+                    HitReadings::Near& sum = sums[size_t(landed[size_t(k)])];
+                    if (sum.patch < 0) sum.patch = landed[size_t(k)], nearTouched.push_back(sum.patch);
+                    sum.weight += float(w), sum.u += float(w * offset[size_t(k)][0]), sum.v += float(w * offset[size_t(k)][1]);
+                }
+                for (int32_t j : nearTouched) {
+                    out.push_back(sums[size_t(j)]);
+                    sums[size_t(j)] = HitReadings::Near{-1, 0, 0, 0};
+                }
+            };
             for (int64_t ii = begin; ii < end; ++ii, progress.update()) {
                 const size_t i = size_t(ii);
                 Rng rng = streamRng(settings.seed, Stream::CastFormFactors, i);
@@ -121,10 +258,12 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     const Hit h = rays.intersect(origin, dir, 0, 1e30, RayView::Patches);
                     origins[size_t(k)] = origin;
                     landed[size_t(k)] = -1;
+                    isNear[size_t(k)] = isInside[size_t(k)] = 0;
                     if (h.patch < 0) continue;  // out of the scene
                     const size_t j = size_t(h.patch);
                     if (patches.normal[j].dot(dir) >= 0) {
                         if (mayBeCovered && insideSolid(patches, rays, i, origin, followed)) {
+                            isInside[size_t(k)] = 1;
                             // At the first origin inside a solid, whether the whole patch is.
                             if (++inside == 1 && whollyInside(patches, rays, i, lift, followed)) {
                                 wholly = k + 1;
@@ -139,6 +278,11 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     } else {
                         landed[size_t(k)] = int32_t(j);
                         if (hits[j]++ == 0) touched.push_back(int32_t(j));
+                        if (h.t < nearRadii * patches.radius[j]) {
+                            const Vec3 x = origin + h.t * dir - patches.centroid[j];
+                            isNear[size_t(k)] = 1;
+                            offset[size_t(k)] = {float(x.dot(tangentU[j])), float(x.dot(tangentV[j]))};
+                        }
                     }
                 }
                 if (wholly) {  // no light reaches it, none leaves it
@@ -150,6 +294,12 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 // The origins in the open, and their share of the patch (all of them but in a solid).
                 const int open = count - inside;
                 exposed[i] = float(open) / float(count);
+                if (inside > 0 && open > 0) {  // the centroid of the uncovered part, by its origins
+                    Vec3 sum = Vec3::Zero();
+                    for (int k = 0; k < count; ++k)
+                        if (!isInside[size_t(k)]) sum += origins[size_t(k)] - patches.centroid[i];
+                    read.shift[i] = {float(sum.dot(tangentU[i]) / open), float(sum.dot(tangentV[i]) / open)};
+                }
                 std::vector<std::pair<int32_t, float>>& row = entries[i];
                 if (open == 0) {  // wholly inside a solid: no light reaches it
                     g_castRays.add(uint64_t(count + followed));
@@ -178,6 +328,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     hits[size_t(j)] = 0;
                 }
                 std::sort(row.begin(), row.end());
+                collectNear([](int) { return true; }, scale / open, read.rows[i]);
                 // A_i F(i -> back of j), with the light of the uncovered part, exposed[i] A_i.
                 for (const auto& [j, h] : backHits)
                     myBack.push_back({int(i), j, scale * patches.area[i] * double(h) / double(count)});
@@ -191,8 +342,10 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     seen[i] = float(unhidden) / float(open);
                     ++hidden;
                     meanEntries[i].swap(row);
+                    read.meanRows[i].swap(read.rows[i]);
                     int second = 0;
                     touched.clear();
+                    std::vector<char> counted(static_cast<size_t>(count), 0);
                     for (int k = 0; k < count; ++k) {
                         const int32_t j = landed[size_t(k)];
                         if (j < 0) continue;
@@ -200,8 +353,11 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                         const Hit h = rays.intersect(origins[size_t(k)], dir, 0, 1e30, RayView::Patches);
                         ++second;
                         if (h.patch >= 0 && patches.normal[size_t(h.patch)].dot(dir) >= 0) continue;
+                        counted[size_t(k)] = 1;
                         if (hits[size_t(j)]++ == 0) touched.push_back(j);
                     }
+                    if (unhidden > 0)
+                        collectNear([&](int k) { return counted[size_t(k)] != 0; }, scale / unhidden, read.rows[i]);
                     followed += second;
                     if (unhidden > 0) {
                         // The analytic columns by their mean over the patch, which the hidden part,
@@ -221,23 +377,13 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
         },
         8);
     progress.done();
-    auto pack = [n](std::vector<std::vector<std::pair<int32_t, float>>>& rows, std::vector<uint64_t>& start,
-                    std::vector<int32_t>& column, std::vector<float>& value) {
-        start.assign(n + 1, 0);
-        for (size_t i = 0; i < n; ++i) start[i + 1] = start[i] + rows[i].size();
-        column.resize(start[n]);
-        value.resize(start[n]);
-        for (size_t i = 0; i < n; ++i) {
-            for (size_t k = 0; k < rows[i].size(); ++k)
-                column[start[i] + k] = rows[i][k].first, value[start[i] + k] = rows[i][k].second;
-            std::vector<std::pair<int32_t, float>>().swap(rows[i]);
-        }
-    };
+    // The slopes need every patch's uncovered part.
+    if (readings) slopeWeights(patches, exposed, read);
     std::vector<uint64_t> start, meanStart;
     std::vector<int32_t> column, meanColumn;
     std::vector<float> value, meanValue;
-    pack(entries, start, column, value);
-    pack(meanEntries, meanStart, meanColumn, meanValue);
+    packRows(entries, start, column, value);
+    packRows(meanEntries, meanStart, meanColumn, meanValue);
     FormFactorMatrix F(n, std::move(start), std::move(column), std::move(value));
     F.sampled = true;
     F.reciprocal = false;
@@ -254,6 +400,73 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             analytic.size(), " analytic columns (small sources) took ", double(analyticNanos) * 1e-9 / threadCount(),
             " s of it");
     return F;
+}
+
+void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const HitReadings& read,
+                            const std::vector<Rgb>& B) {
+    const size_t n = F.size();
+    if (!F.isSparse() || read.rows.size() != n || read.start.size() != n + 1 || B.size() != n) return;
+    const Timer timer;
+    const uint64_t before = F.entries();
+    // Barth and Jespersen's limiter: the slope, scaled so that the light it reconstructs at the
+    // patch's corners stays within the patch's and its neighbours' means.
+    std::vector<float> limit(n, 0.0f);
+    parallelFor(
+        int64_t(n),
+        [&](int64_t begin, int64_t end) {
+            for (int64_t jj = begin; jj < end; ++jj) {
+                const size_t j = size_t(jj);
+                if (read.start[j] == read.start[j + 1]) continue;
+                const double bj = B[j].sum() / 3;
+                double gu = 0, gv = 0, low = bj, high = bj;
+                for (uint32_t a = read.start[j]; a < read.start[j + 1]; ++a) {
+                    const double bk = B[size_t(read.neighbour[a])].sum() / 3;
+                    gu += read.qu[a] * (bk - bj), gv += read.qv[a] * (bk - bj);
+                    low = std::min(low, bk), high = std::max(high, bk);
+                }
+                const Vec3 c = read.uncoveredCentroid(patches, j);
+                double phi = 1;
+                for (int k = 0; k < patches.cornerCount[j]; ++k) {
+                    const Vec3 x = patches.corners[j][size_t(k)] - c;
+                    const double delta = gu * x.dot(read.tangentU[j]) + gv * x.dot(read.tangentV[j]);
+                    if (delta > 0)
+                        phi = std::min(phi, (high - bj) / delta);
+                    else if (delta < 0)
+                        phi = std::min(phi, (low - bj) / delta);
+                }
+                limit[j] = float(std::max(phi, 0.0));
+            }
+        },
+        256);
+    std::vector<std::vector<std::pair<int32_t, float>>> rows(n), meanRows(n);
+    parallelFor(
+        int64_t(n),
+        [&](int64_t begin, int64_t end) {
+            for (int64_t ii = begin; ii < end; ++ii) {
+                const size_t i = size_t(ii);
+                foldNearHits(F.sparseRow(i), read.rows[i], read, limit, rows[i]);
+                if (F.hasMeanRow(i)) foldNearHits(F.meanRow(i), read.meanRows[i], read, limit, meanRows[i]);
+            }
+        },
+        64);
+    std::vector<uint64_t> start, meanStart;
+    std::vector<int32_t> column, meanColumn;
+    std::vector<float> value, meanValue;
+    packRows(rows, start, column, value);
+    packRows(meanRows, meanStart, meanColumn, meanValue);
+    FormFactorMatrix out(n, std::move(start), std::move(column), std::move(value));
+    out.sampled = F.sampled;
+    out.reciprocal = F.reciprocal;
+    out.backTransfers = std::move(F.backTransfers);
+    out.exposed = std::move(F.exposed);
+    out.seen = std::move(F.seen);
+    out.setMeanRows(std::move(meanStart), std::move(meanColumn), std::move(meanValue));
+    F = std::move(out);
+    size_t limited = 0;
+    for (size_t j = 0; j < n; ++j) limited += read.start[j + 1] > read.start[j] && limit[j] < 1;
+    logInfo("form factors (rays): rays that landed within ", kNearRadii,
+            " radii read the light where they landed (slopes of ", limited, " of ", n,
+            " patches limited); entries ", before, " -> ", F.entries(), ", ", timer.seconds(), " s");
 }
 
 Closure sceneClosure(const PatchSet& patches, const RayScene& rays, int raysPerPatch, uint64_t seed) {
