@@ -31,6 +31,7 @@ enum class Stream : uint64_t {
     CausticRegion = 0xca057,     // emitter samples that find the caustic region, per pixel
     BenchReference = 0x5EF,      // the bench's path-traced reference image
     CastFormFactors = 0xCA57,    // ray-cast form factors, per patch
+    CastMore = 0xCA58,           // ray-cast form factors cast again with more rays, per patch
     Closure = 0xC105ED,          // the rays that test whether the scene is closed, per patch
     ObjectReference = 0x0B1EC7,  // the path-traced per-object radiosity (pairRng: object, batch)
 };

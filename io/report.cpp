@@ -68,6 +68,8 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
         entry["emitted_power_w"] = rgbJson(emitted[o]);
         entry["absorbed_power_w"] = rgbJson(absorbed[o]);
         entry["patches"] = patchCount[o];
+        // Ray-cast form factors: the estimated standard error of radiosity_mean over it (solve.h).
+        if (r.objectNoise.size() == objects) entry["relative_error_estimate"] = r.objectNoise[o];
         objs[scene.objects[o].name] = entry;
     }
     report["totals"] = {{"emitted_power_w", rgbJson(r.power.totalEmitted)},

@@ -62,6 +62,9 @@ struct SolveResult {
     double secondsMeshing = 0, secondsFormFactors = 0, secondsSpecular = 0, secondsSolve = 0, secondsVertices = 0;
     double rowSumMin = 0, rowSumMax = 0;  // front-face row sums as made (closed scenes: 1 within error)
     bool closedScene = false;             // no ray from any front face leaves the scene (sceneClosure)
+    // --form-factors rays: each object's estimated relative standard error (objectNoise, solve.cpp);
+    // else empty.
+    std::vector<double> objectNoise;
     std::vector<RefineRound> refinement;  // empty without --refine; else the first solve, then each round
     CounterValues counters;               // what this solve did: every named counter's change over it
 };

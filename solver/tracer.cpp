@@ -82,7 +82,7 @@ std::optional<SpecularBranch> sampleSpecular(const SurfaceHit& hit, const Vec3& 
     return b;
 }
 
-Vec3 samplePatchPoint(const PatchSet& patches, size_t i, double u1, double u2, double u3) {
+Vec3 samplePatchPoint(const PatchSet& patches, size_t i, double u1, double u2, double /*u3: unused*/) {
     const auto& c = patches.corners[i];
     Vec3 a = c[0], b = c[1], d = c[2];
     if (!patches.isTriangle(i)) {
@@ -91,11 +91,19 @@ Vec3 samplePatchPoint(const PatchSet& patches, size_t i, double u1, double u2, d
         // the traced surface, half the time behind it, where its ray meets its own patch's back.
         const double first = 0.5 * (c[1] - c[0]).cross(c[3] - c[0]).norm();
         const double second = 0.5 * (c[3] - c[2]).cross(c[1] - c[2]).norm();
+        // The triangle by u1, its share of u1's range the share of its area: a stratified (u1, u2)
+        // stays stratified over the whole quad (a random pick per point, by u3, left each triangle
+        // holding a binomial number of them: the Cornell box's ray origins were stratified within
+        // each triangle, not over the patch).
+        const double p = first / (first + second);
         d = c[3];
-        if (u3 * (first + second) >= first) {
+        if (u1 >= p) {
             a = c[2];
             b = c[3];
             d = c[1];
+            u1 = p < 1 ? (u1 - p) / (1 - p) : 0;
+        } else {
+            u1 = u1 / p;
         }
     }
     const double r = std::sqrt(u1);

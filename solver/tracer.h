@@ -180,7 +180,9 @@ inline SpecularWalk walkSpecular(const SceneTracer& tracer, SurfaceHit first, co
     return walkSpecular(tracer, std::move(first), dir, rng, maxBounces, minThroughput, [](int, const Rgb&) {});
 }
 
-// A uniformly distributed point on a patch (the two triangles of a quad chosen by area).
+// A uniformly distributed point on a patch: a quad's two triangles by u1, in proportion to their
+// areas, so that points stratified in (u1, u2) are stratified over the whole patch. u3 is unused (it
+// chose the triangle once; callers still pass it).
 Vec3 samplePatchPoint(const PatchSet& patches, size_t patch, double u1, double u2, double u3);
 
 }  // namespace penumbra

@@ -236,7 +236,7 @@ TEST(Cli, EverySolveSettingIsAFlagAndComesBackInTheReport) {
         {"patches", 60},       {"patch_size_m", 0.25},    {"link_tolerance", 2e-4}, {"roots", 9},
         {"tolerance", 3e-5},   {"max_iterations", 777},   {"visibility_rays", 3},   {"ff_tolerance", 2e-4},
         {"specular_rays", 33}, {"specular_max_depth", 7}, {"refine", 0.5},          {"max_patches", 90},
-        {"refine_rounds", 2},  {"ff_rays", 77},           {"grade_contacts", 2}};
+        {"refine_rounds", 2},  {"ff_rays", 77},           {"grade_contacts", 2},    {"ff_noise", 0.02}};
     SolveOptions defaults;
     std::string flags;
     for (const SolveSetting& e : solveSettings(defaults)) {

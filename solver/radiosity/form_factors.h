@@ -22,7 +22,10 @@ struct FormFactorSettings {
     int visibilityRays = 4;  // per pair; pairs found partly visible get 4x as many more
     // auto (chooseFormFactors), rays (ray_form_factors.h) or analytic (cubature and visibility rays).
     std::string method = "auto";
-    int raysPerPatch = 256;  // --form-factors rays: rays cast from each patch
+    int raysPerPatch = 144;  // --form-factors rays: rays cast from each patch (then more where objectNoise asks)
+    // --form-factors rays: the patches of an object whose mean's estimated relative standard error is
+    // above this cast again with more rays (solve.cpp, raysForObjectNoise); 1: never.
+    double objectNoise = 0.005;
     uint64_t seed = 1;
 };
 

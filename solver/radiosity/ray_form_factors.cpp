@@ -3,12 +3,12 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdlib>
 #include <atomic>
 #include <map>
 #include <mutex>
 
 #include "core/counters.h"
+#include "core/error.h"
 #include "core/log.h"
 #include "core/optics.h"
 #include "core/parallel.h"
@@ -171,7 +171,7 @@ Vec3 HitReadings::uncoveredCentroid(const PatchSet& p, size_t i) const {
 
 FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings,
                                  const std::vector<char>& analyticColumns, const std::vector<char>& emitting,
-                                 HitReadings* readings) {
+                                 HitReadings* readings, const std::vector<int>& raysFor) {
     Timer timer;
     const size_t n = patches.size();
     std::vector<size_t> analytic;
@@ -194,8 +194,10 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     read.shift.assign(n, {0.0f, 0.0f});
     const std::vector<Vec3>&tangentU = read.tangentU, &tangentV = read.tangentV;
     const double lift = originLift(patches);
-    const int side = stratumSide(settings.raysPerPatch);
-    const int count = side * side;
+    const int baseSide = stratumSide(settings.raysPerPatch);
+    const int baseCount = baseSide * baseSide;
+    std::atomic<uint64_t> firstRays{0};  // the rays of the rows' first pass
+    std::atomic<size_t> rowsCast{0};
     std::mutex backMutex;
     std::atomic<int64_t> analyticNanos{0};  // thread time in the analytic columns
     std::atomic<size_t> hidden{0};          // patches with a mean row
@@ -211,6 +213,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             static thread_local std::vector<int> hits;
             if (hits.size() < n) hits.assign(n, 0);
             std::vector<int32_t> touched;
+            int side = baseSide, count = baseCount;  // this row's
             // Each origin and the front patch its ray met (-1: anything else), for the second rays.
             std::vector<Vec3> origins(static_cast<size_t>(count));
             std::vector<int32_t> landed(static_cast<size_t>(count));
@@ -239,7 +242,18 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             };
             for (int64_t ii = begin; ii < end; ++ii, progress.update()) {
                 const size_t i = size_t(ii);
-                Rng rng = streamRng(settings.seed, Stream::CastFormFactors, i);
+                if (!raysFor.empty()) {
+                    if (raysFor[i] <= 0) continue;
+                    side = stratumSide(raysFor[i]);
+                    count = side * side;
+                    if (origins.size() < size_t(count)) {
+                        origins.resize(size_t(count)), landed.resize(size_t(count)), offset.resize(size_t(count));
+                        isNear.resize(size_t(count)), isInside.resize(size_t(count));
+                    }
+                }
+                firstRays += uint64_t(count);
+                ++rowsCast;
+                Rng rng = streamRng(settings.seed, raysFor.empty() ? Stream::CastFormFactors : Stream::CastMore, i);
                 const Vec3 n0 = patches.normal[i];
                 backHits.clear();
                 touched.clear();
@@ -395,11 +409,60 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
         return a.from != b.from ? a.from < b.from : a.to < b.to;
     });
     if (hidden) logInfo("form factors (rays): ", size_t(hidden), " patches partly hidden behind back faces");
-    logInfo("form factors (rays): ", n, " patches, ", count, " rays each, ", uint64_t(count) * n, " rays in ",
+    logInfo("form factors (rays): ", size_t(rowsCast), " patches, ",
+            raysFor.empty() ? cat(baseCount, " rays each, ") : cat(double(firstRays) / std::max<size_t>(rowsCast, 1), " rays each on average, "),
+            uint64_t(firstRays), " rays in ",
             timer.seconds(), " s; ", F.entries(), " entries stored, ", double(F.bytes()) / (1 << 20), " MiB; ",
             analytic.size(), " analytic columns (small sources) took ", double(analyticNanos) * 1e-9 / threadCount(),
             " s of it");
     return F;
+}
+
+void castMoreRays(FormFactorMatrix& F, HitReadings& read, const PatchSet& patches, const RayScene& rays,
+                  const FormFactorSettings& settings, const std::vector<char>& analyticColumns,
+                  const std::vector<char>& emitting, const std::vector<int>& raysFor) {
+    const size_t n = F.size();
+    if (!F.isSparse() || raysFor.size() != n || read.rows.size() != n) return;
+    HitReadings more;
+    FormFactorMatrix part = castFormFactors(patches, rays, settings, analyticColumns, emitting, &more, raysFor);
+    std::vector<std::vector<std::pair<int32_t, float>>> rows(n), meanRows(n);
+    std::vector<float> exposed = F.exposed, seen = F.seen;
+    for (size_t i = 0; i < n; ++i) {
+        const bool again = raysFor[i] > 0;
+        const FormFactorMatrix& from = again ? part : F;
+        const FormFactorMatrix::SparseRow row = from.sparseRow(i);
+        for (size_t k = 0; k < row.count; ++k) rows[i].push_back({row.column[k], row.value[k]});
+        if (from.hasMeanRow(i)) {
+            const FormFactorMatrix::SparseRow mean = from.meanRow(i);
+            for (size_t k = 0; k < mean.count; ++k) meanRows[i].push_back({mean.column[k], mean.value[k]});
+        }
+        if (!again) continue;
+        exposed[i] = part.exposed[i], seen[i] = part.seen[i];
+        read.rows[i] = std::move(more.rows[i]), read.meanRows[i] = std::move(more.meanRows[i]);
+        read.shift[i] = more.shift[i];
+    }
+    std::vector<BackTransfer> back;
+    for (const BackTransfer& t : F.backTransfers)
+        if (raysFor[size_t(t.from)] <= 0) back.push_back(t);
+    back.insert(back.end(), part.backTransfers.begin(), part.backTransfers.end());
+    std::sort(back.begin(), back.end(), [](const BackTransfer& a, const BackTransfer& b) {
+        return a.from != b.from ? a.from < b.from : a.to < b.to;
+    });
+    std::vector<uint64_t> start, meanStart;
+    std::vector<int32_t> column, meanColumn;
+    std::vector<float> value, meanValue;
+    packRows(rows, start, column, value);
+    packRows(meanRows, meanStart, meanColumn, meanValue);
+    FormFactorMatrix out(n, std::move(start), std::move(column), std::move(value));
+    out.sampled = F.sampled;
+    out.reciprocal = F.reciprocal;
+    out.backTransfers = std::move(back);
+    out.exposed = std::move(exposed);
+    out.seen = std::move(seen);
+    out.setMeanRows(std::move(meanStart), std::move(meanColumn), std::move(meanValue));
+    F = std::move(out);
+    read.start.clear(), read.neighbour.clear(), read.qu.clear(), read.qv.clear();
+    slopeWeights(patches, F.exposed, read);
 }
 
 void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const HitReadings& read,

@@ -49,7 +49,7 @@ namespace penumbra {
 struct HitReadings;
 FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings,
                                  const std::vector<char>& analyticColumns = {}, const std::vector<char>& emitting = {},
-                                 HitReadings* readings = nullptr);
+                                 HitReadings* readings = nullptr, const std::vector<int>& raysFor = {});
 
 // A patch's radiosity is its mean, and a ray that lands on it reads that mean wherever it lands. A
 // receiver close to the patch sees its near part more than its far part, and where the light bends
@@ -84,6 +84,12 @@ struct HitReadings {
 };
 void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const HitReadings& readings,
                             const std::vector<Rgb>& B);
+
+// Casts the rows i with raysFor[i] > 0 again, with that many rays (a stream of their own), in place
+// of F's and of their readings, and the slopes again (the uncovered parts are measured anew).
+void castMoreRays(FormFactorMatrix& F, HitReadings& readings, const PatchSet& patches, const RayScene& rays,
+                  const FormFactorSettings& settings, const std::vector<char>& analyticColumns,
+                  const std::vector<char>& emitting, const std::vector<int>& raysFor);
 
 // Whether the scene is closed, by `raysPerPatch` cosine rays from every patch's front face: none may
 // leave the scene (`sealed`), and none may meet a back face either (`frontOnly`; a patch partly
