@@ -137,8 +137,9 @@ void slopeWeights(const PatchSet& p, const std::vector<float>& exposed, HitReadi
 // uncovered centroid moves w limit_j (q_k . x) from column j to each neighbour k. Columns ascending.
 void foldNearHits(FormFactorMatrix::SparseRow row, const std::vector<HitReadings::Near>& hits, const HitReadings& h,
                   const std::vector<float>& limit, std::vector<std::pair<int32_t, float>>& out) {
-    out.clear();
-    for (size_t k = 0; k < row.count; ++k) out.push_back({row.column[k], row.value[k]});
+    // The moves, sorted and summed per column, then merged with the row (already ascending).
+    static thread_local std::vector<std::pair<int32_t, float>> moves;
+    moves.clear();
     for (const HitReadings::Near& hit : hits) {
         const size_t j = size_t(hit.patch);
         if (limit[j] <= 0) continue;
@@ -147,21 +148,26 @@ void foldNearHits(FormFactorMatrix::SparseRow row, const std::vector<HitReadings
         double moved = 0;
         for (uint32_t a = h.start[j]; a < h.start[j + 1]; ++a) {
             const double w = u * h.qu[a] + v * h.qv[a];
-            out.push_back({h.neighbour[a], float(w)});
+            moves.push_back({h.neighbour[a], float(w)});
             moved += w;
         }
-        out.push_back({hit.patch, float(-moved)});
+        moves.push_back({hit.patch, float(-moved)});
     }
-    std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    size_t kept = 0;
-    for (size_t k = 0; k < out.size(); ++k) {
-        if (kept > 0 && out[kept - 1].first == out[k].first)
-            out[kept - 1].second += out[k].second;
+    std::sort(moves.begin(), moves.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    out.clear();
+    out.reserve(row.count + moves.size());
+    size_t k = 0, m = 0;
+    while (k < row.count || m < moves.size()) {
+        const bool fromRow = m == moves.size() || (k < row.count && row.column[k] <= moves[m].first);
+        const std::pair<int32_t, float> e = fromRow ? std::make_pair(row.column[k], row.value[k]) : moves[m];
+        fromRow ? ++k : ++m;
+        if (!out.empty() && out.back().first == e.first)
+            out.back().second += e.second;
         else
-            out[kept++] = out[k];
+            out.push_back(e);
     }
-    out.resize(kept);
 }
+
 
 }  // namespace
 
