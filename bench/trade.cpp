@@ -23,6 +23,7 @@
 #include "render/image_metrics.h"
 #include "render/integrators.h"
 #include "render/path_tracer.h"
+#include "render/object_reference.h"
 #include "render/photon_map.h"
 #include "render/radiosity_view.h"
 #include "solver/solve.h"
@@ -232,6 +233,7 @@ private:
     const SolveRecord& solveFor(const Setting& s);
     Row runOne(const Setting& s);
     void measureLimits(BenchResult& result);
+    void measureObjects(BenchResult& result);
     void measureThreads(BenchResult& result);
 
     const BenchOptions& options_;
@@ -290,6 +292,69 @@ const Image& Bench::reference(BenchResult& result) {
     ensureDirectory(dir);
     writeLinearImage(reference_, path);
     return reference_;
+}
+
+// The per-object reference (cached as one line per object: index, the three channels, the relative
+// error, the points) and the default solve against it at 8 seeds (quick: 2).
+void Bench::measureObjects(BenchResult& result) {
+    const double target = options_.quick ? 0.005 : 0.001;
+    result.objectReferenceError = target;
+    const std::string dir = options_.cache.empty() ? defaultCacheDir() : options_.cache;
+    char name[160];
+    std::snprintf(name, sizeof name, "objects-%016llx-%g-seed%llu.txt",
+                  static_cast<unsigned long long>(scene_.fingerprint), target,
+                  static_cast<unsigned long long>(options_.seed));
+    const std::string path = (std::filesystem::path(dir) / name).string();
+    std::vector<ObjectEstimate> reference(scene_.objects.size());
+    bool cached = false;
+    if (std::ifstream in(path); in) {
+        size_t k;
+        double r, g, b, relative;
+        int64_t points;
+        size_t read = 0;
+        while (in >> k >> r >> g >> b >> relative >> points)
+            if (k < reference.size()) reference[k].radiosity = Rgb(r, g, b), reference[k].samples = points, ++read;
+        cached = read > 0;
+    }
+    if (!cached) {
+        logInfo("bench: path-traced per-object reference (", 100 * target, "% per object), cached in ", path);
+        ObjectReferenceSettings settings;
+        settings.targetError = target;
+        settings.seed = options_.seed;
+        Timer timer;
+        reference = quietly([&] { return pathObjectRadiosity(*pathTracer_, settings); });
+        result.objectReferenceSeconds = timer.seconds();
+        std::string text;
+        for (size_t k = 0; k < reference.size(); ++k) {
+            const ObjectEstimate& e = reference[k];
+            if (e.samples == 0) continue;
+            text += cat(k, " ", e.radiosity[0], " ", e.radiosity[1], " ", e.radiosity[2], " ", e.relativeError, " ",
+                        e.samples, "\n");
+        }
+        ensureDirectory(dir);
+        writeFileAtomic(path, text);
+    }
+    const int seeds = options_.quick ? 2 : 8;
+    for (int seed = 1; seed <= seeds; ++seed) {
+        SolveOptions o;
+        o.formFactors.seed = uint64_t(seed);
+        const SolveResult r = quietly([&] { return solveScene(scene_, o); });
+        ObjectRun run;
+        run.seed = uint64_t(seed);
+        run.seconds = r.secondsMeshing + r.secondsFormFactors + r.secondsSpecular + r.secondsSolve + r.secondsVertices;
+        const std::vector<Rgb> mean = objectRadiosity(r, scene_.objects.size());
+        for (size_t k = 0; k < mean.size(); ++k) {
+            if (reference[k].samples == 0 || !(reference[k].radiosity.sum() > 0)) continue;
+            const double e = std::abs(mean[k].sum() / reference[k].radiosity.sum() - 1);
+            if (e < run.worstError) continue;
+            run.worstError = e;
+            run.worst = scene_.objects[k].name;
+            run.worstStated = k < r.objectNoise.size() ? r.objectNoise[k] : 0;
+        }
+        logInfo("bench: default solve, seed ", seed, ": ", run.seconds, " s, worst object ", run.worst, " ",
+                100 * run.worstError, "%");
+        result.objectRuns.push_back(run);
+    }
 }
 
 const SolveRecord& Bench::solveFor(const Setting& s) {
@@ -533,6 +598,7 @@ BenchResult Bench::run() {
     }
     markPareto(result.rows);
 
+    measureObjects(result);
     measureLimits(result);
     progress.update();
     measureThreads(result);

@@ -73,6 +73,16 @@ struct ThreadScaling {
     bool identical = false;
 };
 
+// The default solve at one seed against the path-traced per-object reference (issue 13's target:
+// the whole solve in at most 0.3 s on the Cornell box, every object within 1%).
+struct ObjectRun {
+    uint64_t seed = 0;
+    double seconds = 0;        // the solve's stages
+    std::string worst;         // the object furthest from the reference
+    double worstError = 0;     // |mean / reference - 1| over the channels' sum
+    double worstStated = 0;    // that object's relative_error_estimate
+};
+
 struct BenchResult {
     std::string scene, machine;
     int width = 0, height = 0, referenceSpp = 0;
@@ -84,6 +94,10 @@ struct BenchResult {
     // The form-factor and final-gather rates of the default settings, rays per second.
     // The default solve's form-factor stage: visibility (occlusion) rays and cast (nearest-hit) rays.
     double formFactorRays = 0, formFactorCastRays = 0, formFactorSeconds = 0, gatherRays = 0, gatherSeconds = 0;
+    // Each object's mean radiosity by path tracing (render/object_reference.h), cached like the
+    // image, to this relative standard error per object; and the default solve against it, per seed.
+    double objectReferenceError = 0, objectReferenceSeconds = 0;  // seconds 0 when read from the cache
+    std::vector<ObjectRun> objectRuns;
 };
 
 BenchResult runBench(const BenchOptions& options);
