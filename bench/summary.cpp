@@ -298,13 +298,14 @@ std::string summaryMarkdown(const BenchResult& r) {
             seconds.push_back(o.seconds);
         }
         std::sort(seconds.begin(), seconds.end());
-        md += cat("- The default solve against each object's path-traced mean (",
-                  percent(r.objectReferenceError), " standard error per object",
-                  r.objectReferenceSeconds > 0 ? cat(", ", fixed(r.objectReferenceSeconds, 1), " s") : ", from the cache",
-                  ") over ", r.objectRuns.size(), " seeds: worst object **", percent(worst), "** (target within 1%), stages ",
-                  fixed(seconds.front(), 3), "-", fixed(slowest, 3), " s, median **",
-                  fixed(seconds[seconds.size() / 2], 3), " s** (target at most 0.3 s on the Cornell box).\n\n"
-                  "| seed | stages (s) | worst object | its error | its stated noise |\n|---|---|---|---|---|\n");
+        md += cat(
+            "- The default solve against each object's path-traced mean (", percent(r.objectReferenceError),
+            " standard error per object",
+            r.objectReferenceSeconds > 0 ? cat(", ", fixed(r.objectReferenceSeconds, 1), " s") : ", from the cache",
+            ") over ", r.objectRuns.size(), " seeds: worst object **", percent(worst), "** (target within 1%), stages ",
+            fixed(seconds.front(), 3), "-", fixed(slowest, 3), " s, median **", fixed(seconds[seconds.size() / 2], 3),
+            " s** (target at most 0.3 s on the Cornell box).\n\n"
+            "| seed | stages (s) | worst object | its error | its stated noise |\n|---|---|---|---|---|\n");
         for (const ObjectRun& o : r.objectRuns)
             md += cat("| ", o.seed, " | ", fixed(o.seconds, 3), " | ", o.worst, " | ", percent(o.worstError), " | ",
                       percent(o.worstStated), " |\n");

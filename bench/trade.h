@@ -77,10 +77,10 @@ struct ThreadScaling {
 // the whole solve in at most 0.3 s on the Cornell box, every object within 1%).
 struct ObjectRun {
     uint64_t seed = 0;
-    double seconds = 0;        // the solve's stages
-    std::string worst;         // the object furthest from the reference
-    double worstError = 0;     // |mean / reference - 1| over the channels' sum
-    double worstStated = 0;    // that object's relative_error_estimate
+    double seconds = 0;      // the solve's stages
+    std::string worst;       // the object furthest from the reference
+    double worstError = 0;   // |mean / reference - 1| over the channels' sum
+    double worstStated = 0;  // that object's relative_error_estimate
 };
 
 struct BenchResult {

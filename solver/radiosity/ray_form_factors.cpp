@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <array>
-#include <cmath>
 #include <atomic>
+#include <cmath>
 #include <map>
 #include <mutex>
 
@@ -168,7 +168,6 @@ void foldNearHits(FormFactorMatrix::SparseRow row, const std::vector<HitReadings
     }
 }
 
-
 }  // namespace
 
 Vec3 HitReadings::uncoveredCentroid(const PatchSet& p, size_t i) const {
@@ -239,7 +238,8 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     if (!isNear[size_t(k)] || !counts(k)) continue;
                     HitReadings::Near& sum = sums[size_t(landed[size_t(k)])];
                     if (sum.patch < 0) sum.patch = landed[size_t(k)], nearTouched.push_back(sum.patch);
-                    sum.weight += float(w), sum.u += float(w * offset[size_t(k)][0]), sum.v += float(w * offset[size_t(k)][1]);
+                    sum.weight += float(w), sum.u += float(w * offset[size_t(k)][0]),
+                        sum.v += float(w * offset[size_t(k)][1]);
                 }
                 for (int32_t j : nearTouched) {
                     out.push_back(sums[size_t(j)]);
@@ -416,11 +416,11 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     });
     if (hidden) logInfo("form factors (rays): ", size_t(hidden), " patches partly hidden behind back faces");
     logInfo("form factors (rays): ", size_t(rowsCast), " patches, ",
-            raysFor.empty() ? cat(baseCount, " rays each, ") : cat(double(firstRays) / std::max<size_t>(rowsCast, 1), " rays each on average, "),
-            uint64_t(firstRays), " rays in ",
-            timer.seconds(), " s; ", F.entries(), " entries stored, ", double(F.bytes()) / (1 << 20), " MiB; ",
-            analytic.size(), " analytic columns (small sources) took ", double(analyticNanos) * 1e-9 / threadCount(),
-            " s of it");
+            raysFor.empty() ? cat(baseCount, " rays each, ")
+                            : cat(double(firstRays) / std::max<size_t>(rowsCast, 1), " rays each on average, "),
+            uint64_t(firstRays), " rays in ", timer.seconds(), " s; ", F.entries(), " entries stored, ",
+            double(F.bytes()) / (1 << 20), " MiB; ", analytic.size(), " analytic columns (small sources) took ",
+            double(analyticNanos) * 1e-9 / threadCount(), " s of it");
     return F;
 }
 
@@ -534,8 +534,8 @@ void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const 
     size_t limited = 0;
     for (size_t j = 0; j < n; ++j) limited += read.start[j + 1] > read.start[j] && limit[j] < 1;
     logInfo("form factors (rays): rays that landed within ", kNearRadii,
-            " radii read the light where they landed (slopes of ", limited, " of ", n,
-            " patches limited); entries ", before, " -> ", F.entries(), ", ", timer.seconds(), " s");
+            " radii read the light where they landed (slopes of ", limited, " of ", n, " patches limited); entries ",
+            before, " -> ", F.entries(), ", ", timer.seconds(), " s");
 }
 
 Closure sceneClosure(const PatchSet& patches, const RayScene& rays, int raysPerPatch, uint64_t seed) {
