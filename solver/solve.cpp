@@ -256,15 +256,20 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
     }
     r.secondsFormFactors += ffTimer.seconds();
 
-    if (scene.hasSpecular()) {
+    // What a row sends to mirrors and glass, the transport passes on by the row's own shares: made
+    // again whenever rows are cast again.
+    auto transport = [&](const std::vector<int>& only) {
         const SceneTracer tracer(scene, r.patches, r.rays);
         SpecularSettings specular = options.specular;
         specular.seed = options.formFactors.seed;
-        r.system.transport = computeSpecularTransport(scene, r.patches, r.F, tracer, specular);
+        r.system.transport =
+            computeSpecularTransport(scene, r.patches, r.F, tracer, specular, &r.system.transport, only);
         r.secondsSpecular += r.system.transport.seconds;
-    } else {
+    };
+    if (scene.hasSpecular())
+        transport({});
+    else
         logInfo("no mirrors or glass in the scene: no specular transport");
-    }
     checkSteadyState(scene, r.system, rows);
     if (!readings.rows.empty()) {
         // Where rays landed close, they read the light where they landed, by the slopes of a first
@@ -285,6 +290,11 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
             for (size_t i = 0; i < n; ++i) r.system.area[i] = r.patches.area[i] * double(r.F.exposed[i]);
             r.secondsFormFactors += more.seconds();
             r.secondsSolve -= more.seconds();  // counted in readTimer's too
+            if (scene.hasSpecular()) {
+                const Timer again;
+                transport(raysFor);
+                r.secondsSolve -= again.seconds();
+            }
         }
         r.objectNoise = objectNoise(scene, options, r, analytic, first, raysFor);
         readLightWhereRaysLand(r.F, r.patches, readings, first);

@@ -32,7 +32,8 @@ struct RowResult {
 }  // namespace
 
 SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& patches, const FormFactorMatrix& F,
-                                           const SceneTracer& tracer, const SpecularSettings& settings) {
+                                           const SceneTracer& tracer, const SpecularSettings& settings,
+                                           const SpecularTransport* previous, const std::vector<int>& only) {
     SpecularTransport out;
     if (!tracer.hasSpecular()) return out;
     Timer timer;
@@ -61,6 +62,17 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
         std::vector<Fate> fates;
         for (int64_t ii = begin; ii < end; ++ii, progress.update()) {
             const size_t i = size_t(ii);
+            if (previous && !previous->empty() && only.size() == n && only[i] <= 0) {  // kept
+                RowResult& row = rows[i];
+                for (size_t k = previous->outStart[i]; k < previous->outStart[i + 1]; ++k) {
+                    const size_t j = size_t(previous->outTarget[k]);
+                    row.delivered.push_back({int(j), Rgb(previous->outWeight[k] * patches.area[j] / patches.area[i])});
+                }
+                for (size_t k = previous->lossStart[i]; k < previous->lossStart[i + 1]; ++k)
+                    row.lost.push_back({previous->lossObject[k], previous->lossShare[k]});
+                row.unresolved = previous->rowUnresolved[i];
+                continue;
+            }
             const Material& m = scene.materialOf(scene.objects[size_t(patches.object[i])]);
             if (m.type != MaterialType::Diffuse || ((m.reflectance <= 0).all() && !m.emits())) continue;
             std::fill(share.begin(), share.end(), 0.0);
@@ -138,6 +150,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
         g_transportRays.add(uint64_t(rows[i].rays));
         rays += rows[i].rays;
         out.unresolvedShare += patches.area[i] * rows[i].unresolved;
+        out.rowUnresolved.push_back(rows[i].unresolved);
         area += patches.area[i];
     }
     out.unresolvedShare /= std::max(area, 1e-300);

@@ -40,7 +40,8 @@ struct SpecularTransport {
     std::vector<int> lossObject;
     std::vector<Rgb> lossShare;
 
-    double unresolvedShare = 0;  // area-weighted share F(i, o) no ray found (counted absorbed by o)
+    double unresolvedShare = 0;         // area-weighted share F(i, o) no ray found (counted absorbed by o)
+    std::vector<double> rowUnresolved;  // that share per source patch
     double seconds = 0;
 
     bool empty() const { return inStart.empty(); }
@@ -54,7 +55,11 @@ struct SpecularTransport {
 };
 
 // Empty when the scene has no mirror or glass.
+// With `previous` and `only`, the rows i with only[i] > 0 are traced again (their rows of F were cast
+// again: castMoreRays) and the others kept from `previous`.
 SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& patches, const FormFactorMatrix& F,
-                                           const SceneTracer& tracer, const SpecularSettings& settings);
+                                           const SceneTracer& tracer, const SpecularSettings& settings,
+                                           const SpecularTransport* previous = nullptr,
+                                           const std::vector<int>& only = {});
 
 }  // namespace penumbra
