@@ -226,9 +226,9 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
     HitReadings readings;
     if (!r.rays) r.rays = buildRayScene(scene, r.patches);  // else graded with it (contact_grading.h)
     r.system = buildSystem(scene, r.patches);
+    std::vector<char> emitting(n, 0);
+    for (size_t i = 0; i < n; ++i) emitting[i] = r.system.emission[i].maxCoeff() > 0;
     if (castsFormFactors(options)) {
-        std::vector<char> emitting(n, 0);
-        for (size_t i = 0; i < n; ++i) emitting[i] = r.system.emission[i].maxCoeff() > 0;
         r.F = castFormFactors(r.patches, *r.rays, options.formFactors, smallSources(r.system), emitting, &readings);
         // What a patch's light leaves from and lands on is its uncovered part (ray_form_factors.h).
         size_t covered = 0;
@@ -283,8 +283,6 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
         const std::vector<char> analytic = smallSources(r.system);
         std::vector<int> raysFor = raysForObjectNoise(scene, options, r, analytic, first);
         if (!raysFor.empty()) {
-            std::vector<char> emitting(n, 0);
-            for (size_t i = 0; i < n; ++i) emitting[i] = r.system.emission[i].maxCoeff() > 0;
             const Timer more;
             castMoreRays(r.F, readings, r.patches, *r.rays, options.formFactors, analytic, emitting, raysFor);
             for (size_t i = 0; i < n; ++i) r.system.area[i] = r.patches.area[i] * double(r.F.exposed[i]);

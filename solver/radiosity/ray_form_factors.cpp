@@ -86,6 +86,24 @@ void packRows(std::vector<std::vector<std::pair<int32_t, float>>>& rows, std::ve
     }
 }
 
+// F with its rows and mean rows made of `rows` and `meanRows` (emptied), its other fields kept.
+void replaceRows(FormFactorMatrix& F, std::vector<std::vector<std::pair<int32_t, float>>>& rows,
+                 std::vector<std::vector<std::pair<int32_t, float>>>& meanRows) {
+    std::vector<uint64_t> start, meanStart;
+    std::vector<int32_t> column, meanColumn;
+    std::vector<float> value, meanValue;
+    packRows(rows, start, column, value);
+    packRows(meanRows, meanStart, meanColumn, meanValue);
+    FormFactorMatrix out(F.size(), std::move(start), std::move(column), std::move(value));
+    out.sampled = F.sampled;
+    out.reciprocal = F.reciprocal;
+    out.backTransfers = std::move(F.backTransfers);
+    out.exposed = std::move(F.exposed);
+    out.seen = std::move(F.seen);
+    out.setMeanRows(std::move(meanStart), std::move(meanColumn), std::move(meanValue));
+    F = std::move(out);
+}
+
 // The least-squares slope weights of every patch (HitReadings): its neighbours are the patches of
 // the same object that share a corner with it, face within 30 degrees of it, and are not wholly
 // inside a solid; centroids are those of the uncovered parts.
@@ -454,19 +472,10 @@ void castMoreRays(FormFactorMatrix& F, HitReadings& read, const PatchSet& patche
     std::sort(back.begin(), back.end(), [](const BackTransfer& a, const BackTransfer& b) {
         return a.from != b.from ? a.from < b.from : a.to < b.to;
     });
-    std::vector<uint64_t> start, meanStart;
-    std::vector<int32_t> column, meanColumn;
-    std::vector<float> value, meanValue;
-    packRows(rows, start, column, value);
-    packRows(meanRows, meanStart, meanColumn, meanValue);
-    FormFactorMatrix out(n, std::move(start), std::move(column), std::move(value));
-    out.sampled = F.sampled;
-    out.reciprocal = F.reciprocal;
-    out.backTransfers = std::move(back);
-    out.exposed = std::move(exposed);
-    out.seen = std::move(seen);
-    out.setMeanRows(std::move(meanStart), std::move(meanColumn), std::move(meanValue));
-    F = std::move(out);
+    F.backTransfers = std::move(back);
+    F.exposed = std::move(exposed);
+    F.seen = std::move(seen);
+    replaceRows(F, rows, meanRows);
     read.start.clear(), read.neighbour.clear(), read.qu.clear(), read.qv.clear();
     slopeWeights(patches, F.exposed, read);
 }
@@ -518,19 +527,7 @@ void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const 
             }
         },
         64);
-    std::vector<uint64_t> start, meanStart;
-    std::vector<int32_t> column, meanColumn;
-    std::vector<float> value, meanValue;
-    packRows(rows, start, column, value);
-    packRows(meanRows, meanStart, meanColumn, meanValue);
-    FormFactorMatrix out(n, std::move(start), std::move(column), std::move(value));
-    out.sampled = F.sampled;
-    out.reciprocal = F.reciprocal;
-    out.backTransfers = std::move(F.backTransfers);
-    out.exposed = std::move(F.exposed);
-    out.seen = std::move(F.seen);
-    out.setMeanRows(std::move(meanStart), std::move(meanColumn), std::move(meanValue));
-    F = std::move(out);
+    replaceRows(F, rows, meanRows);
     size_t limited = 0;
     for (size_t j = 0; j < n; ++j) limited += read.start[j + 1] > read.start[j] && limit[j] < 1;
     logInfo("form factors (rays): rays that landed within ", kNearRadii,
