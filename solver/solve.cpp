@@ -228,8 +228,9 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
     r.system = buildSystem(scene, r.patches);
     std::vector<char> emitting(n, 0);
     for (size_t i = 0; i < n; ++i) emitting[i] = r.system.emission[i].maxCoeff() > 0;
+    const std::vector<char> analytic = smallSources(r.system);  // the small sources' exact columns
     if (castsFormFactors(options)) {
-        r.F = castFormFactors(r.patches, *r.rays, options.formFactors, smallSources(r.system), emitting, &readings);
+        r.F = castFormFactors(r.patches, *r.rays, options.formFactors, analytic, emitting, &readings);
         // What a patch's light leaves from and lands on is its uncovered part (ray_form_factors.h).
         size_t covered = 0;
         for (size_t i = 0; i < n; ++i) {
@@ -280,7 +281,6 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
         SolverSettings loose = options.solverSettings;
         loose.tolerance = std::max(loose.tolerance, 1e-3);
         const std::vector<Rgb> first = solver->solve(r.F, r.system, loose, {}).B;
-        const std::vector<char> analytic = smallSources(r.system);
         std::vector<int> raysFor = raysForObjectNoise(scene, options, r, analytic, first);
         if (!raysFor.empty()) {
             const Timer more;

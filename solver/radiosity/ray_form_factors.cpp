@@ -14,6 +14,7 @@
 #include "core/parallel.h"
 #include "core/progress.h"
 #include "core/timer.h"
+#include "mesh/refine.h"
 #include "solver/tracer.h"
 
 namespace penumbra {
@@ -86,6 +87,13 @@ void packRows(std::vector<std::vector<std::pair<int32_t, float>>>& rows, std::ve
     }
 }
 
+// Back transfers by source, then target.
+void sortBackTransfers(std::vector<BackTransfer>& back) {
+    std::sort(back.begin(), back.end(), [](const BackTransfer& a, const BackTransfer& b) {
+        return a.from != b.from ? a.from < b.from : a.to < b.to;
+    });
+}
+
 // F with its rows and mean rows made of `rows` and `meanRows` (emptied), its other fields kept.
 void replaceRows(FormFactorMatrix& F, std::vector<std::vector<std::pair<int32_t, float>>>& rows,
                  std::vector<std::vector<std::pair<int32_t, float>>>& meanRows) {
@@ -111,23 +119,17 @@ void slopeWeights(const PatchSet& p, const std::vector<float>& exposed, HitReadi
     const size_t n = p.size();
     h.start.assign(n + 1, 0);
     if (p.cornerVertex.size() != n) return;
-    std::vector<std::vector<int>> around(p.vertices.size());
-    for (size_t i = 0; i < n; ++i)
-        for (int k = 0; k < p.cornerCount[i]; ++k)
-            if (p.cornerVertex[i][size_t(k)] >= 0) around[size_t(p.cornerVertex[i][size_t(k)])].push_back(int(i));
+    const std::vector<std::vector<int>> around = patchesAround(p);
     const double crease = std::cos(30 * kPi / 180);
     std::vector<int> near;
     std::vector<std::array<double, 2>> d;
     for (size_t j = 0; j < n; ++j) {
         near.clear();
         if (exposed[j] > 0)
-            for (int c = 0; c < p.cornerCount[j]; ++c) {
-                const int vertex = p.cornerVertex[j][size_t(c)];
-                if (vertex < 0) continue;
-                for (int k : around[size_t(vertex)])
+            for (int c = 0; c < p.cornerCount[j]; ++c)
+                for (int k : around[size_t(p.cornerVertex[j][size_t(c)])])
                     if (size_t(k) != j && exposed[size_t(k)] > 0 && p.normal[size_t(k)].dot(p.normal[j]) >= crease)
                         near.push_back(k);
-            }
         std::sort(near.begin(), near.end());
         near.erase(std::unique(near.begin(), near.end()), near.end());
         const Vec3 cj = h.uncoveredCentroid(p, j);
@@ -429,9 +431,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     F.exposed = std::move(exposed);
     F.seen = std::move(seen);
     F.setMeanRows(std::move(meanStart), std::move(meanColumn), std::move(meanValue));
-    std::sort(F.backTransfers.begin(), F.backTransfers.end(), [](const BackTransfer& a, const BackTransfer& b) {
-        return a.from != b.from ? a.from < b.from : a.to < b.to;
-    });
+    sortBackTransfers(F.backTransfers);
     if (hidden) logInfo("form factors (rays): ", size_t(hidden), " patches partly hidden behind back faces");
     logInfo("form factors (rays): ", size_t(rowsCast), " patches, ",
             raysFor.empty() ? cat(baseCount, " rays each, ")
@@ -469,9 +469,7 @@ void castMoreRays(FormFactorMatrix& F, HitReadings& read, const PatchSet& patche
     for (const BackTransfer& t : F.backTransfers)
         if (raysFor[size_t(t.from)] <= 0) back.push_back(t);
     back.insert(back.end(), part.backTransfers.begin(), part.backTransfers.end());
-    std::sort(back.begin(), back.end(), [](const BackTransfer& a, const BackTransfer& b) {
-        return a.from != b.from ? a.from < b.from : a.to < b.to;
-    });
+    sortBackTransfers(back);
     F.backTransfers = std::move(back);
     F.exposed = std::move(exposed);
     F.seen = std::move(seen);
