@@ -57,6 +57,8 @@ struct SolveCli {
         // Adaptive subdivision starts coarse, unless told where to start.
         if (o.refine.tolerance > 0 && patches->count() == 0 && !(o.meshing.patchSize > 0))
             o.meshing.targetPatches = std::min(kRefineStartPatches, o.refine.maxPatches);
+        // An explicit --patches is the user's number; the default has a floor per object.
+        if (patches->count() > 0 || o.refine.tolerance > 0) o.meshing.patchesPerObject = 0;
         return o;
     }
     static constexpr int kRefineStartPatches = 400;

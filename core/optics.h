@@ -45,6 +45,15 @@ inline Vec3 cosineDirection(const Vec3& n, double u1, double u2) {
     orthonormalBasis(n, t, b);
     return (r * std::cos(phi) * t + r * std::sin(phi) * b + std::sqrt(std::max(0.0, 1 - u1)) * n).normalized();
 }
+// cosineDirection for many directions about one normal, its tangent frame found once.
+struct CosineSampler {
+    explicit CosineSampler(const Vec3& normal) : n(normal) { orthonormalBasis(n, t, b); }
+    Vec3 operator()(double u1, double u2) const {
+        const double r = std::sqrt(u1), phi = 2 * kPi * u2;
+        return (r * std::cos(phi) * t + r * std::sin(phi) * b + std::sqrt(std::max(0.0, 1 - u1)) * n).normalized();
+    }
+    Vec3 n, t, b;
+};
 inline Vec3 cosineDirection(const Vec3& n, Rng& rng) {
     const double u1 = rng.uniform();
     return cosineDirection(n, u1, rng.uniform());

@@ -379,8 +379,11 @@ void gradeMesh(const Scene& scene, const SolveOptions& options, SolveResult& r) 
         grading.minArea = std::accumulate(r.patches.area.begin(), r.patches.area.end(), 0.0) /
                           double(r.patches.size()) / std::pow(4.0, grading.levels);
     const size_t uniform = r.patches.size();
-    GradedMesh best = gradeContacts(scene, r.patches, grading);
-    const double target = options.meshing.targetPatches;
+    // Every try measures in the uniform mesh's ray scene (the same geometry): one scene built, not three.
+    const std::shared_ptr<const RayScene> geometry = buildRayScene(scene, r.patches);
+    GradedMesh best = gradeContacts(scene, r.patches, grading, geometry);
+    if (best.split == 0) best.rays = geometry;  // the uniform mesh itself: its scene serves the solve
+    const double target = patchTarget(scene, options.meshing);
     auto miss = [&](const GradedMesh& g) { return std::abs(double(g.patches.size()) / target - 1); };
     double asked = target, got = double(best.patches.size());
     // A uniform mesh of fewer than two patches per object (the building: 13,346 for 9,553 quads at
@@ -391,7 +394,8 @@ void gradeMesh(const Scene& scene, const SolveOptions& options, SolveResult& r) 
         MeshingOptions again = options.meshing;
         asked *= target / got;
         again.targetPatches = std::max(1, int(std::lround(asked)));
-        GradedMesh graded = gradeContacts(scene, meshScene(scene, again), grading);
+        again.patchesPerObject = 0;  // `asked` holds the floor already
+        GradedMesh graded = gradeContacts(scene, meshScene(scene, again), grading, geometry);
         got = double(graded.patches.size());
         if (miss(graded) < miss(best)) best = std::move(graded);
     }

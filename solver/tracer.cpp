@@ -83,31 +83,37 @@ std::optional<SpecularBranch> sampleSpecular(const SurfaceHit& hit, const Vec3& 
 }
 
 Vec3 samplePatchPoint(const PatchSet& patches, size_t i, double u1, double u2, double /*u3: unused*/) {
+    return PatchPointSampler(patches, i)(u1, u2);
+}
+
+PatchPointSampler::PatchPointSampler(const PatchSet& patches, size_t i) {
     const auto& c = patches.corners[i];
-    Vec3 a = c[0], b = c[1], d = c[2];
-    if (!patches.isTriangle(i)) {
-        // The two triangles Embree traces a quad as, (c0, c1, c3) and (c2, c3, c1): on a quad that is
-        // not quite flat (the Cornell box's walls) a point of the other diagonal's triangles lies off
-        // the traced surface, half the time behind it, where its ray meets its own patch's back.
-        const double first = 0.5 * (c[1] - c[0]).cross(c[3] - c[0]).norm();
-        const double second = 0.5 * (c[3] - c[2]).cross(c[1] - c[2]).norm();
-        // The triangle by u1, its share of u1's range the share of its area: a stratified (u1, u2)
-        // stays stratified over the whole quad (a random pick per point, by u3, left each triangle
-        // holding a binomial number of them: the Cornell box's ray origins were stratified within
-        // each triangle, not over the patch).
-        const double p = first / (first + second);
-        d = c[3];
-        if (u1 >= p) {
-            a = c[2];
-            b = c[3];
-            d = c[1];
-            u1 = p < 1 ? (u1 - p) / (1 - p) : 0;
-        } else {
-            u1 = u1 / p;
-        }
+    a_[0] = c[0], b_[0] = c[1], d_[0] = c[2];
+    if (patches.isTriangle(i)) return;
+    // The two triangles Embree traces a quad as, (c0, c1, c3) and (c2, c3, c1): on a quad that is
+    // not quite flat (the Cornell box's walls) a point of the other diagonal's triangles lies off
+    // the traced surface, half the time behind it, where its ray meets its own patch's back.
+    const double first = 0.5 * (c[1] - c[0]).cross(c[3] - c[0]).norm();
+    const double second = 0.5 * (c[3] - c[2]).cross(c[1] - c[2]).norm();
+    // The triangle by u1, its share of u1's range the share of its area: a stratified (u1, u2)
+    // stays stratified over the whole quad (a random pick per point, by u3, left each triangle
+    // holding a binomial number of them: the Cornell box's ray origins were stratified within
+    // each triangle, not over the patch).
+    split_ = first / (first + second);
+    d_[0] = c[3];
+    a_[1] = c[2], b_[1] = c[3], d_[1] = c[1];
+}
+
+Vec3 PatchPointSampler::operator()(double u1, double u2) const {
+    int t = 0;
+    if (u1 >= split_) {
+        t = 1;
+        u1 = split_ < 1 ? (u1 - split_) / (1 - split_) : 0;
+    } else {
+        u1 = u1 / split_;
     }
     const double r = std::sqrt(u1);
-    return (1 - r) * a + r * (1 - u2) * b + r * u2 * d;
+    return (1 - r) * a_[t] + r * (1 - u2) * b_[t] + r * u2 * d_[t];
 }
 
 SceneTracer::SceneTracer(const Scene& scene, const PatchSet& patches, std::shared_ptr<const RayScene> rays)

@@ -185,4 +185,15 @@ inline SpecularWalk walkSpecular(const SceneTracer& tracer, SurfaceHit first, co
 // chose the triangle once; callers still pass it).
 Vec3 samplePatchPoint(const PatchSet& patches, size_t patch, double u1, double u2, double u3);
 
+// samplePatchPoint for many points of one patch, its triangles and their split found once.
+class PatchPointSampler {
+public:
+    PatchPointSampler(const PatchSet& patches, size_t patch);
+    Vec3 operator()(double u1, double u2) const;
+
+private:
+    Vec3 a_[2], b_[2], d_[2];
+    double split_ = 1;  // u1 below it: the first triangle
+};
+
 }  // namespace penumbra

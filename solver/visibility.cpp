@@ -151,6 +151,11 @@ bool RayScene::occluded(const Vec3& from, const Vec3& to, double trim, RayView v
     return ray.tfar < 0;
 }
 
+int RayScene::occluder(const Vec3& from, const Vec3& to, double trim, RayView view) const {
+    const Hit h = intersect(from, to - from, trim, 1 - trim, view);
+    return h.patch >= 0 ? h.patch : h.sphere >= 0 ? -2 : -1;
+}
+
 Hit RayScene::intersect(const Vec3& origin, const Vec3& dir, double tMin, double tMax, RayView view) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);

@@ -47,6 +47,9 @@ public:
     // True if anything blocks the open segment from `from` to `to`, trimmed at both ends by
     // `trim` (a fraction of its length) so the endpoints' own patches do not count.
     bool occluded(const Vec3& from, const Vec3& to, double trim = 1e-5, RayView view = RayView::Patches) const;
+    // The patch nearest `from` that blocks the open segment as `occluded` trims it, or -1 if none
+    // does (-2: only an exact sphere): one nearest-hit ray, for callers that cache what blocked them.
+    int occluder(const Vec3& from, const Vec3& to, double trim = 1e-5, RayView view = RayView::Patches) const;
     // Nearest hit along origin + t * dir, t in (tMin, tMax).
     Hit intersect(const Vec3& origin, const Vec3& dir, double tMin = 0, double tMax = 1e30,
                   RayView view = RayView::Patches) const;

@@ -472,6 +472,41 @@ TEST(RayFormFactors, AShadowOnALargePatchTakesItsShareOfTheLight) {
     EXPECT_NEAR(solved, exact, 0.01 * exact);
 }
 
+// The lamp over the floor with the black square between them, the floor in 5 cm patches taken in
+// order, each pair's visibility first tested against the patch that blocked the last one's rays (the
+// building's rooms behind a wall from another room's lamp): every factor is the same as traced
+// afresh, and the shadowed patches cost fewer rays.
+TEST(FormFactorMatrix, AKnownBlockerGivesTheSameFactorsForFewerRays) {
+    const Scene scene = test::sceneFromJson(test::lampOverFloor(true));
+    MeshingOptions m;
+    m.patchSize = 0.05;
+    const PatchSet p = meshScene(scene, m);
+    const auto rays = buildRayScene(scene, p);
+    const FormFactorSettings settings;
+    std::vector<size_t> lamp;
+    for (size_t j = 0; j < p.size(); ++j)
+        if (p.object[j] == 1) lamp.push_back(j);
+    ASSERT_FALSE(lamp.empty());
+    std::vector<Blockers> blockers(lamp.size());
+    uint64_t traced = 0, cached = 0;
+    int shadowed = 0;
+    for (size_t i = 0; i < p.size(); ++i) {
+        if (p.object[i] != 0) continue;
+        for (size_t a = 0; a < lamp.size(); ++a) {
+            const uint64_t before = raysCast();
+            const double plain = frontFormFactor(p, *rays, i, lamp[a], settings);
+            const uint64_t between = raysCast();
+            const double known = frontFormFactor(p, *rays, i, lamp[a], settings, &blockers[a]);
+            ASSERT_EQ(plain, known) << "floor patch " << i << ", lamp patch " << lamp[a];
+            if (plain > 0) continue;
+            ++shadowed;
+            traced += between - before, cached += raysCast() - between;
+        }
+    }
+    EXPECT_GT(shadowed, 100);
+    EXPECT_LT(double(cached), 0.2 * double(traced));
+}
+
 // A small patch 1 cm above a floor whose light rises linearly across it, B(x) = 1 + x, reads the
 // cosine-weighted mean of B over the floor below it: 1 + x0 at its foot x0 (the linear term averages
 // out about the foot; the floor's edges, 0.4 m away or more, hold under 0.1% of the kernel). Its foot

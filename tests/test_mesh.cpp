@@ -102,10 +102,35 @@ TEST(Meshing, PatchCountFollowsTheTarget) {
     for (int target : {6, 100, 1000}) {
         MeshingOptions o;
         o.targetPatches = target;
+        o.patchesPerObject = 0;  // as an explicit --patches sets it
         const size_t n = meshScene(scene, o).size();
         EXPECT_GE(double(n), 0.8 * target);
         EXPECT_LE(double(n), 1.6 * target);
     }
+}
+
+TEST(Meshing, ManySmallObjectsLeaveTheLargeSurfacesTheirShare) {
+    // A 10 x 10 m floor under 2,000 tiles of 5 x 5 cm (a library's books): at 3,000 patches in all the
+    // tiles would take two thirds and the floor be meshed at 18 cm; the default's floor of three per
+    // object asks 6,000, and the floor's share of the area gets its share of them.
+    std::string objects = R"({"name": "floor", "type": "quad", "material": "m",
+        "vertices": [[0, 0, 0], [0, 0, 10], [10, 0, 10], [10, 0, 0]]})";
+    for (int k = 0; k < 2000; ++k) {
+        const double x = 0.1 + 0.2 * (k % 45), z = 0.1 + 0.2 * (k / 45);
+        objects += cat(R"(, {"name": "tile)", k, R"(", "type": "quad", "material": "m", "vertices": [[)", x, ", 0.5, ",
+                       z, "], [", x, ", 0.5, ", z + 0.05, "], [", x + 0.05, ", 0.5, ", z + 0.05, "], [", x + 0.05,
+                       ", 0.5, ", z, "]]}");
+    }
+    const Scene scene = test::sceneFromJson(R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
+        "objects": [)" + objects + "]}");
+    MeshingOptions o;
+    EXPECT_EQ(patchTarget(scene, o), 6003);
+    const PatchSet p = meshScene(scene, o);
+    const double area = 100 + 2000 * 0.0025, floorShare = 100 / area;
+    const auto floorPatches = double(std::count(p.object.begin(), p.object.end(), 0));
+    EXPECT_NEAR(floorPatches, floorShare * 6003, 0.1 * floorShare * 6003);
+    o.patchesPerObject = 0;
+    EXPECT_EQ(patchTarget(scene, o), 3000);
 }
 
 TEST(Meshing, MirroredSphereStillFacesOutward) {

@@ -104,8 +104,34 @@ PlaneSides planeSides(const PatchSet& p, size_t a, size_t b) {
     return sides;
 }
 
+namespace {
+
+// Whether the segment from + t (to - from), t in (trim, 1 - trim), crosses patch k's triangles as the
+// ray scene has them (a quad's 0 1 3 and 2 3 1; Moller and Trumbore).
+bool segmentCrossesPatch(const PatchSet& p, size_t k, const Vec3& from, const Vec3& to, double trim) {
+    const Vec3 d = to - from;
+    auto crosses = [&](const Vec3& a, const Vec3& b, const Vec3& c) {
+        const Vec3 e1 = b - a, e2 = c - a, pv = d.cross(e2);
+        const double det = e1.dot(pv);
+        if (!(std::abs(det) > 0)) return false;
+        const Vec3 tv = from - a;
+        const double u = tv.dot(pv) / det;
+        if (u < 0 || u > 1) return false;
+        const Vec3 qv = tv.cross(e1);
+        const double v = d.dot(qv) / det;
+        if (v < 0 || u + v > 1) return false;
+        const double t = e2.dot(qv) / det;
+        return t > trim && t < 1 - trim;
+    };
+    const auto& c = p.corners[k];
+    if (p.cornerCount[k] == 3) return crosses(c[0], c[1], c[2]);
+    return crosses(c[0], c[1], c[3]) || crosses(c[2], c[3], c[1]);
+}
+
+}  // namespace
+
 Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, size_t b, int sideA, int sideB,
-                           bool clipped, int base, uint64_t seed, Stream stream) {
+                           bool clipped, int base, uint64_t seed, Stream stream, Blockers* blockers) {
     Rng rng = pairRng(seed, stream, a, b);
     const Vec3 na = sideA * p.normal[a], nb = sideB * p.normal[b];
     const Vec3 liftA = liftDistance(p, a) * na, liftB = liftDistance(p, b) * nb;
@@ -136,7 +162,21 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
             const Vec3 from = clipped ? uniformPoint(partA, rng) : stratifiedPoint(p, a, sa, sideOf, rng);
             const Vec3 to = clipped ? uniformPoint(partB, rng) : stratifiedPoint(p, b, sb, sideOf, rng);
             ++rays;
-            const bool open = !scene.occluded(from + liftA, to + liftB);
+            bool open;
+            if (!blockers) {
+                open = !scene.occluded(from + liftA, to + liftB);
+            } else if (std::any_of(blockers->patch.begin(), blockers->patch.end(), [&](int known) {
+                           return known >= 0 && segmentCrossesPatch(p, size_t(known), from + liftA, to + liftB, 1e-5);
+                       })) {
+                open = false;
+            } else {
+                const int by = scene.occluder(from + liftA, to + liftB);
+                open = by == -1;
+                if (by >= 0) {
+                    blockers->patch[size_t(blockers->next)] = by;
+                    blockers->next = (blockers->next + 1) % int(blockers->patch.size());
+                }
+            }
             visible += open;
             ends.emplace_back(aLarger ? from : to, open);
         }
@@ -244,7 +284,7 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
 }
 
 double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, size_t j,
-                       const FormFactorSettings& settings) {
+                       const FormFactorSettings& settings, Blockers* blockers) {
     if (i == j) return 0;
     const size_t a = std::min(i, j), b = std::max(i, j);
     const PlaneSides bSeenByA = planeSides(patches, a, b), aSeenByB = planeSides(patches, b, a);
@@ -255,8 +295,9 @@ double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, 
     const double reach = std::sqrt(std::max(patches.area[a], patches.area[b])) /
                          std::max((patches.centroid[a] - patches.centroid[b]).norm(), 1e-12);
     const int grid = std::clamp(int(std::ceil(4 * reach)), 1, 4);
-    const Visibility vis = visibleFraction(patches, rays, a, b, 1, 1, bSeenByA.straddles() || aSeenByB.straddles(),
-                                           settings.visibilityRays * grid * grid, settings.seed);
+    const Visibility vis =
+        visibleFraction(patches, rays, a, b, 1, 1, bSeenByA.straddles() || aSeenByB.straddles(),
+                        settings.visibilityRays * grid * grid, settings.seed, Stream::Visibility, blockers);
     g_visibilityRays.add(uint64_t(vis.rays));
     if (vis.fraction == 0) return 0;
     uint64_t evaluations = 0;

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -141,8 +142,19 @@ struct Visibility {
     double fraction;
     int rays;
 };
+// The last few patches that blocked segments to one patch (a lamp), for visibleFraction.
+struct Blockers {
+    std::array<int, 4> patch{-1, -1, -1, -1};
+    int next = 0;  // the slot the next blocker takes
+};
+
+// With `blockers` (patches that blocked like segments before), each segment is first tested against
+// those patches' triangles, as Embree splits them, and traced only if it misses them all; a traced
+// segment that is blocked adds its nearest blocker. The answer is the same; rows of patches side by
+// side against one lamp beyond a wall (the building's other rooms) cost triangle tests instead of rays.
 Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, size_t b, int sideA, int sideB,
-                           bool clipped, int base, uint64_t seed, Stream stream = Stream::Visibility);
+                           bool clipped, int base, uint64_t seed, Stream stream = Stream::Visibility,
+                           Blockers* blockers = nullptr);
 
 FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings);
 
@@ -150,7 +162,7 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& ray
 // front of the other): visibility rays (more where the larger patch is wide for the pair's distance,
 // up to 16 times `visibilityRays`), then the kernel's cubature over the smaller patch.
 double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, size_t j,
-                       const FormFactorSettings& settings);
+                       const FormFactorSettings& settings, Blockers* blockers = nullptr);
 
 // What `auto` form factors run on these patches, and why: the analytic cubature while the patch pairs
 // that face each other are few enough for it to take well under a second (at most

@@ -71,6 +71,13 @@ bool whollyInside(const PatchSet& patches, const RayScene& rays, size_t i, doubl
 // A ray that lands within this many of its patch's radii of its origin sees that patch's near part
 // more than its far part (HitReadings).
 constexpr double kNearRadii = 4;
+// Where a ray landed: near its patch (within kNearRadii radii), or farther.
+constexpr char kNear = 1, kFar = 2;
+// A hit from farther reads the light where it landed only on a patch whose slope moves the light by
+// at least this share of its mean across the patch's radius (a patch part of which lies in a narrow
+// gap, or deep in a cavity): elsewhere the reading adds the patch's neighbours to every row that
+// meets it, for a change smaller than the noise.
+constexpr double kSteep = 0.2;
 
 // Rows of (column, value) pairs, columns ascending, compressed (and emptied).
 void packRows(std::vector<std::vector<std::pair<int32_t, float>>>& rows, std::vector<uint64_t>& start,
@@ -155,14 +162,17 @@ void slopeWeights(const PatchSet& p, const std::vector<float>& exposed, HitReadi
 
 // Row `row` with its near hits read where they land: a hit of weight w at offset x from patch j's
 // uncovered centroid moves w limit_j (q_k . x) from column j to each neighbour k. Columns ascending.
-void foldNearHits(FormFactorMatrix::SparseRow row, const std::vector<HitReadings::Near>& hits, const HitReadings& h,
-                  const std::vector<float>& limit, std::vector<std::pair<int32_t, float>>& out) {
+void foldNearHits(FormFactorMatrix::SparseRow row, const std::vector<HitReadings::Near>& hits,
+                  const std::vector<HitReadings::Near>& farHits, const HitReadings& h, const std::vector<float>& limit,
+                  const std::vector<char>& steep, std::vector<std::pair<int32_t, float>>& out) {
     // The moves, sorted and summed per column, then merged with the row (already ascending).
     static thread_local std::vector<std::pair<int32_t, float>> moves;
     moves.clear();
-    for (const HitReadings::Near& hit : hits) {
+    const size_t nearCount = hits.size();
+    for (size_t m = 0; m < nearCount + farHits.size(); ++m) {
+        const HitReadings::Near& hit = m < nearCount ? hits[m] : farHits[m - nearCount];
         const size_t j = size_t(hit.patch);
-        if (limit[j] <= 0) continue;
+        if (limit[j] <= 0 || (m >= nearCount && !steep[j])) continue;
         const double u = limit[j] * (double(hit.u) - double(hit.weight) * h.shift[j][0]);
         const double v = limit[j] * (double(hit.v) - double(hit.weight) * h.shift[j][1]);
         double moved = 0;
@@ -213,7 +223,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     HitReadings& read = readings ? *readings : local;
     read = HitReadings();
     const double nearRadii = readings ? kNearRadii : 0;
-    read.rows.resize(n), read.meanRows.resize(n);
+    read.rows.resize(n), read.meanRows.resize(n), read.farRows.resize(n), read.farMeanRows.resize(n);
     read.tangentU.resize(n), read.tangentV.resize(n);
     for (size_t i = 0; i < n; ++i) orthonormalBasis(patches.normal[i], read.tangentU[i], read.tangentV[i]);
     read.shift.assign(n, {0.0f, 0.0f});
@@ -250,12 +260,15 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             static thread_local std::vector<HitReadings::Near> sums;
             if (sums.size() < n) sums.assign(n, HitReadings::Near{-1, 0, 0, 0});
             std::vector<int32_t> nearTouched;
+            // Per analytic column, the patch that last blocked a visibility ray to it (rows in patch
+            // order: neighbours, often behind the same wall).
+            std::vector<Blockers> blockers(analytic.size());
             // The near hits among the origins that `counts`, each of weight w.
-            auto collectNear = [&](const auto& counts, double w, std::vector<HitReadings::Near>& out) {
+            auto collectNear = [&](char reach, const auto& counts, double w, std::vector<HitReadings::Near>& out) {
                 out.clear();
                 nearTouched.clear();
                 for (int k = 0; k < count; ++k) {
-                    if (!isNear[size_t(k)] || !counts(k)) continue;
+                    if (isNear[size_t(k)] != reach || !counts(k)) continue;
                     HitReadings::Near& sum = sums[size_t(landed[size_t(k)])];
                     if (sum.patch < 0) sum.patch = landed[size_t(k)], nearTouched.push_back(sum.patch);
                     sum.weight += float(w), sum.u += float(w * offset[size_t(k)][0]),
@@ -287,14 +300,19 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 int wholly = 0;  // the rays cast before the patch was found wholly inside a solid
                 const bool mayBeCovered = !(i < emitting.size() && emitting[i]);
                 shuffledStrata(order, count, rng);
+                const PatchPointSampler onPatch(patches, i);
+                const CosineSampler around(n0);
+                const Vec3 lifted = lift * n0;
                 for (int k = 0; k < count; ++k) {
                     // Origins in one stratum of the patch, directions in another (a random
                     // permutation of the strata), both jittered.
                     const int a = k, b = order[size_t(k)];
                     const double u1 = ((a % side) + rng.uniform()) / side, u2 = ((a / side) + rng.uniform()) / side;
                     const double d1 = ((b % side) + rng.uniform()) / side, d2 = ((b / side) + rng.uniform()) / side;
-                    const Vec3 origin = rayOrigin(patches, i, u1, u2, rng.uniform(), lift);
-                    const Vec3 dir = cosineDirection(n0, d1, d2);
+                    rng.uniform();  // u3 of samplePatchPoint, unused: kept so the stream stays as it was
+                    const Vec3 at = onPatch(u1, u2);
+                    const Vec3 origin = at + 1e-3 * (patches.centroid[i] - at) + lifted;  // rayOrigin
+                    const Vec3 dir = around(d1, d2);
                     const Hit h = rays.intersect(origin, dir, 0, 1e30, RayView::Patches);
                     origins[size_t(k)] = origin;
                     landed[size_t(k)] = -1;
@@ -318,9 +336,9 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     } else {
                         landed[size_t(k)] = int32_t(j);
                         if (hits[j]++ == 0) touched.push_back(int32_t(j));
-                        if (h.t < nearRadii * patches.radius[j]) {
+                        if (readings) {
                             const Vec3 x = origin + h.t * dir - patches.centroid[j];
-                            isNear[size_t(k)] = 1;
+                            isNear[size_t(k)] = h.t < nearRadii * patches.radius[j] ? kNear : kFar;
                             offset[size_t(k)] = {float(x.dot(tangentU[j])), float(x.dot(tangentV[j]))};
                         }
                     }
@@ -349,8 +367,9 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 // patch, whose covered part sees no source), then as a mean over the uncovered part.
                 double exact = 0;
                 const Timer columns;
-                for (size_t j : analytic) {
-                    const double f = frontFormFactor(patches, rays, i, j, settings) / exposed[i];
+                for (size_t a = 0; a < analytic.size(); ++a) {
+                    const size_t j = analytic[a];
+                    const double f = frontFormFactor(patches, rays, i, j, settings, &blockers[a]) / exposed[i];
                     if (f > 0) row.push_back({int32_t(j), float(f)});
                     exact += f;
                 }
@@ -368,7 +387,10 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     hits[size_t(j)] = 0;
                 }
                 std::sort(row.begin(), row.end());
-                collectNear([](int) { return true; }, scale / open, read.rows[i]);
+                collectNear(
+                    kNear, [](int) { return true; }, scale / open, read.rows[i]);
+                collectNear(
+                    kFar, [](int) { return true; }, scale / open, read.farRows[i]);
                 // A_i F(i -> back of j), with the light of the uncovered part, exposed[i] A_i.
                 for (const auto& [j, h] : backHits)
                     myBack.push_back({int(i), j, scale * patches.area[i] * double(h) / double(count)});
@@ -383,13 +405,15 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     ++hidden;
                     meanEntries[i].swap(row);
                     read.meanRows[i].swap(read.rows[i]);
+                    read.farMeanRows[i].swap(read.farRows[i]);
                     int second = 0;
                     touched.clear();
                     std::vector<char> counted(static_cast<size_t>(count), 0);
                     for (int k = 0; k < count; ++k) {
                         const int32_t j = landed[size_t(k)];
                         if (j < 0) continue;
-                        const Vec3 dir = cosineDirection(n0, rng.uniform(), rng.uniform());
+                        const double e1 = rng.uniform();
+                        const Vec3 dir = around(e1, rng.uniform());
                         const Hit h = rays.intersect(origins[size_t(k)], dir, 0, 1e30, RayView::Patches);
                         ++second;
                         if (h.patch >= 0 && patches.normal[size_t(h.patch)].dot(dir) >= 0) continue;
@@ -397,7 +421,10 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                         if (hits[size_t(j)]++ == 0) touched.push_back(j);
                     }
                     if (unhidden > 0)
-                        collectNear([&](int k) { return counted[size_t(k)] != 0; }, scale / unhidden, read.rows[i]);
+                        for (const char reach : {kNear, kFar})
+                            collectNear(
+                                reach, [&](int k) { return counted[size_t(k)] != 0; }, scale / unhidden,
+                                reach == kNear ? read.rows[i] : read.farRows[i]);
                     followed += second;
                     if (unhidden > 0) {
                         // The analytic columns by their mean over the patch, which the hidden part,
@@ -463,6 +490,7 @@ void castMoreRays(FormFactorMatrix& F, HitReadings& read, const PatchSet& patche
         if (!again) continue;
         exposed[i] = part.exposed[i], seen[i] = part.seen[i];
         read.rows[i] = std::move(more.rows[i]), read.meanRows[i] = std::move(more.meanRows[i]);
+        read.farRows[i] = std::move(more.farRows[i]), read.farMeanRows[i] = std::move(more.farMeanRows[i]);
         read.shift[i] = more.shift[i];
     }
     std::vector<BackTransfer> back;
@@ -487,6 +515,7 @@ void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const 
     // Barth and Jespersen's limiter: the slope, scaled so that the light it reconstructs at the
     // patch's corners stays within the patch's and its neighbours' means.
     std::vector<float> limit(n, 0.0f);
+    std::vector<char> steep(n, 0);  // kSteep
     parallelFor(
         int64_t(n),
         [&](int64_t begin, int64_t end) {
@@ -511,6 +540,7 @@ void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const 
                         phi = std::min(phi, (low - bj) / delta);
                 }
                 limit[j] = float(std::max(phi, 0.0));
+                steep[j] = limit[j] * std::sqrt(gu * gu + gv * gv) * patches.radius[j] >= kSteep * bj;
             }
         },
         256);
@@ -520,8 +550,9 @@ void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const 
         [&](int64_t begin, int64_t end) {
             for (int64_t ii = begin; ii < end; ++ii) {
                 const size_t i = size_t(ii);
-                foldNearHits(F.sparseRow(i), read.rows[i], read, limit, rows[i]);
-                if (F.hasMeanRow(i)) foldNearHits(F.meanRow(i), read.meanRows[i], read, limit, meanRows[i]);
+                foldNearHits(F.sparseRow(i), read.rows[i], read.farRows[i], read, limit, steep, rows[i]);
+                if (F.hasMeanRow(i))
+                    foldNearHits(F.meanRow(i), read.meanRows[i], read.farMeanRows[i], read, limit, steep, meanRows[i]);
             }
         },
         64);

@@ -72,6 +72,8 @@ struct HitReadings {
         float weight, u, v;
     };
     std::vector<std::vector<Near>> rows, meanRows;
+    // The same for the hits that landed farther (read only on steep patches: readLightWhereRaysLand).
+    std::vector<std::vector<Near>> farRows, farMeanRows;
     // Per patch: its tangent frame; its uncovered part's centroid, offset in it; its neighbours k
     // (start .. start + 1) and their least-squares weights q_k = M^-1 d_k (d_k: the offset of k's
     // centroid, M: the sum of d_k d_k^T), so that the slope is the sum of q_k (B_k - B_j).
