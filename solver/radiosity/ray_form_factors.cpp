@@ -206,7 +206,7 @@ Vec3 HitReadings::uncoveredCentroid(const PatchSet& p, size_t i) const {
 
 FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings,
                                  const std::vector<char>& analyticColumns, const std::vector<char>& emitting,
-                                 HitReadings* readings, const std::vector<int>& raysFor) {
+                                 HitReadings* readings, const std::vector<int>& raysFor, const HitReadings* previous) {
     Timer timer;
     const size_t n = patches.size();
     std::vector<size_t> analytic;
@@ -227,6 +227,9 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     read.tangentU.resize(n), read.tangentV.resize(n);
     for (size_t i = 0; i < n; ++i) orthonormalBasis(patches.normal[i], read.tangentU[i], read.tangentV[i]);
     read.shift.assign(n, {0.0f, 0.0f});
+    const size_t columnCount = analytic.size();
+    const bool known = previous && previous->exact.size() == n * columnCount;
+    if (readings && !known) read.exact.assign(n * columnCount, 0.0f);
     const std::vector<Vec3>&tangentU = read.tangentU, &tangentV = read.tangentV;
     const double lift = originLift(patches);
     const int baseSide = stratumSide(settings.raysPerPatch);
@@ -367,9 +370,16 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 // patch, whose covered part sees no source), then as a mean over the uncovered part.
                 double exact = 0;
                 const Timer columns;
-                for (size_t a = 0; a < analytic.size(); ++a) {
+                for (size_t a = 0; a < columnCount; ++a) {
                     const size_t j = analytic[a];
-                    const double f = frontFormFactor(patches, rays, i, j, settings, &blockers[a]) / exposed[i];
+                    double whole;
+                    if (known) {
+                        whole = previous->exact[i * columnCount + a];
+                    } else {
+                        whole = frontFormFactor(patches, rays, i, j, settings, &blockers[a]);
+                        if (readings) read.exact[i * columnCount + a] = float(whole);
+                    }
+                    const double f = whole / exposed[i];
                     if (f > 0) row.push_back({int32_t(j), float(f)});
                     exact += f;
                 }
@@ -475,7 +485,7 @@ void castMoreRays(FormFactorMatrix& F, HitReadings& read, const PatchSet& patche
     const size_t n = F.size();
     if (!F.isSparse() || raysFor.size() != n || read.rows.size() != n) return;
     HitReadings more;
-    FormFactorMatrix part = castFormFactors(patches, rays, settings, analyticColumns, emitting, &more, raysFor);
+    FormFactorMatrix part = castFormFactors(patches, rays, settings, analyticColumns, emitting, &more, raysFor, &read);
     std::vector<std::vector<std::pair<int32_t, float>>> rows(n), meanRows(n);
     std::vector<float> exposed = F.exposed, seen = F.seen;
     for (size_t i = 0; i < n; ++i) {
