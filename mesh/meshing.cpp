@@ -316,7 +316,10 @@ PatchSet meshScene(const Scene& scene, const MeshingOptions& options) {
                 break;
         }
     }
-    logInfo("meshed ", scene.objects.size(), " objects into ", patches.size(), " patches (target size ", h, " m)");
+    const int asked = options.patchSize > 0 ? 0 : patchTarget(scene, options);
+    logInfo("meshed ", scene.objects.size(), " objects into ", patches.size(), " patches (target size ", h, " m",
+            asked > options.targetPatches ? cat("; ", asked, " asked: ", options.patchesPerObject, " per object") : "",
+            ")");
     return patches;
 }
 

@@ -330,18 +330,20 @@ void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveRes
     const CounterValues before = counterValues();
     Timer meshTimer;
     MeshingOptions rootMeshing;
+    rootMeshing.patchesPerObject = 0;  // about --roots of them, however many objects
     // Roots no finer than the elements asked for.
     rootMeshing.targetPatches = options.meshing.patchSize > 0
                                     ? options.hierarchyRoots
-                                    : std::min(options.hierarchyRoots, options.meshing.targetPatches);
+                                    : std::min(options.hierarchyRoots, patchTarget(scene, options.meshing));
     const PatchSet roots = planarRoots(meshScene(scene, rootMeshing));
     HierarchySettings settings = options.hierarchy;
     settings.solver = options.solverSettings;
     settings.seed = options.formFactors.seed;
     settings.visibilityRays = options.formFactors.visibilityRays;
     if (!(settings.minArea > 0)) {
-        const double h = options.meshing.patchSize > 0 ? options.meshing.patchSize
-                                                       : std::sqrt(sceneArea(scene) / options.meshing.targetPatches);
+        const double h = options.meshing.patchSize > 0
+                             ? options.meshing.patchSize
+                             : std::sqrt(sceneArea(scene) / patchTarget(scene, options.meshing));
         settings.minArea = h * h;
     }
     const std::shared_ptr<const RayScene> rootRays = buildRayScene(scene, roots);
@@ -437,8 +439,10 @@ std::vector<SolveSetting> solveSettings(SolveOptions& o) {
     // (0, infinity): any positive number.
     constexpr double kPositive = 0, kHuge = std::numeric_limits<double>::infinity();
     return {
-        {"patches", "--patches", "About this many patches in all (with --refine: to start from, default 400)", 1, 1e8,
-         true, &o.meshing.targetPatches},
+        {"patches", "--patches",
+         "About this many patches in all; unless given, at least three per object (a scene of many small objects "
+         "leaves its large surfaces their share; with --refine: to start from, default 400)",
+         1, 1e8, true, &o.meshing.targetPatches},
         {"patch_size_m", "--patch-size", "Target patch edge length in metres (overrides --patches)", kPositive, kHuge,
          false, &o.meshing.patchSize},
         {"link_tolerance", "--link-tolerance",
