@@ -47,7 +47,7 @@ struct SolveCli {
     SolveOptions options;
     double maxMemoryGiB = 0;
     int viewSpp = 4;
-    CLI::Option* patches = nullptr;
+    CLI::Option *patches = nullptr, *perObject = nullptr;
 
     // The options as the solve takes them, with what the command line leaves to depend on others.
     SolveOptions resolved(const CommonOptions& common) const {
@@ -58,7 +58,7 @@ struct SolveCli {
         if (o.refine.tolerance > 0 && patches->count() == 0 && !(o.meshing.patchSize > 0))
             o.meshing.targetPatches = std::min(kRefineStartPatches, o.refine.maxPatches);
         // An explicit --patches is the user's number; the default has a floor per object.
-        if (patches->count() > 0 || o.refine.tolerance > 0) o.meshing.patchesPerObject = 0;
+        if ((patches->count() > 0 || o.refine.tolerance > 0) && perObject->count() == 0) o.meshing.patchesPerObject = 0;
         return o;
     }
     static constexpr int kRefineStartPatches = 400;
@@ -95,6 +95,7 @@ void addSolveOptions(CLI::App* cmd, SolveCli& s) {
             option->check(CLI::Range(e.min, e.max));
         if (e.showDefault) option->capture_default_str();
         if (std::string(e.key) == "patches") s.patches = option;
+        if (std::string(e.key) == "patches_per_object") s.perObject = option;
     }
     std::string solverHelp;
     for (const SolverInfo& e : solverRegistry())

@@ -443,6 +443,10 @@ std::vector<SolveSetting> solveSettings(SolveOptions& o) {
          "About this many patches in all; unless given, at least three per object (a scene of many small objects "
          "leaves its large surfaces their share; with --refine: to start from, default 400)",
          1, 1e8, true, &o.meshing.targetPatches},
+        {"patches_per_object", "--patches-per-object",
+         "The floor of the default --patches: at least this many patches per object (kept with an explicit "
+         "--patches only if given too; 0: none)",
+         0, 1e6, true, &o.meshing.patchesPerObject},
         {"patch_size_m", "--patch-size", "Target patch edge length in metres (overrides --patches)", kPositive, kHuge,
          false, &o.meshing.patchSize},
         {"link_tolerance", "--link-tolerance",

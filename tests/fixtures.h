@@ -131,7 +131,8 @@ inline std::string furnaceCube(double rho, const std::string& spec = "", bool sp
 
 // The unit furnace cube (every surface reflectance rho, emission 1) holding two boxes and a sphere,
 // none touching another: occluders everywhere, nothing open, no back face in sight.
-inline std::string furnaceWithOccluders(double rho) {
+// With `gap`, also a thin panel standing 1 cm off the wall x = 0: a narrow gap (ray_form_factors.cpp).
+inline std::string furnaceWithOccluders(double rho, bool gap = false) {
     auto quad = [](const std::string& name, std::initializer_list<std::array<double, 3>> v) {
         std::string text = cat(R"(, {"name": ")", name, R"(", "type": "quad", "material": "m", "vertices": [)");
         bool first = true;
@@ -152,7 +153,8 @@ inline std::string furnaceWithOccluders(double rho) {
     return furnaceCube(
         rho, "", false,
         box("box", 0.15, 0.45, 0.1, 0.55, 0.2, 0.5) + box("slab", 0.55, 0.9, 0.05, 0.2, 0.1, 0.35) +
-            R"(, {"name": "ball", "type": "sphere", "material": "m", "center": [0.7, 0.6, 0.65], "radius": 0.2})");
+            R"(, {"name": "ball", "type": "sphere", "material": "m", "center": [0.7, 0.6, 0.65], "radius": 0.2})" +
+            (gap ? box("panel", 0.01, 0.03, 0.05, 0.85, 0.55, 0.95) : std::string()));
 }
 
 // Form factor from a point, facing up at the origin, to the parallel rectangle [x0,x1] x [y0,y1] at

@@ -237,6 +237,18 @@ TEST_P(RayFurnace, EveryPatchHoldsEOverOneMinusRho) {
 
 INSTANTIATE_TEST_SUITE_P(Solvers, RayFurnace, ::testing::Values("jacobi", "gauss-seidel", "southwell"));
 
+TEST(RayFormFactors, AFurnaceWithANarrowGapHoldsEOverOneMinusRho) {
+    // A panel 1 cm off a wall: the wall's patches behind it show the room the light of their part in
+    // the room, the panel's face in the gap reads what it meets there as its own. Rows still sum to one.
+    const double rho = 0.999;
+    const SolveResult r = solveByRays(test::furnaceWithOccluders(rho, true), test::kSanitized ? 120 : 250, 64,
+                                      "gauss-seidel", 1e-5 * (1 - rho));
+    size_t weighted = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i) weighted += r.F.hasMeanRow(i);
+    EXPECT_GT(weighted, 0u) << "wall patches partly behind the panel";
+    expectFurnace(r, rho, "a narrow gap");
+}
+
 TEST(Closure, AnOpenSceneIsNotScaled) {
     // The furnace cube without its top face: rays leave through the opening, so the analytic rows keep
     // their own sums, below one near the opening. Scaled, the patches by the opening would read 1.
@@ -382,8 +394,10 @@ TEST(RayFormFactors, APatchWhollyInASolidCastsNoRaysOfItsOwn) {
     ASSERT_EQ(covered, 1u);
     // The others cast 1,024 each, and follow their few origins under the rim and the odd grazing ray
     // that meets a back face: fewer than the covered patch's own 1,024 (with 5 more for each, 6,144)
-    // in all.
-    EXPECT_LT(r.counters.at("form_factors.cast_rays"), 1024 * r.patches.size());
+    // in all. (The box's 2 mm sides, whose rays land on the floor beside them, also ask whether their
+    // origins lie in a gap: rays counted apart.)
+    EXPECT_LT(r.counters.at("form_factors.cast_rays") - r.counters.at("form_factors.gap_rays"),
+              1024 * r.patches.size());
     EXPECT_GT(objectRadiosity(r, scene.objects.size())[0][0], 0.0);
 }
 
@@ -435,6 +449,48 @@ TEST(RayFormFactors, APatchPartlyHiddenShowsTheSceneWhatItSeesAndKeepsItsMean) {
     for (size_t i = 0; i < r.patches.size(); ++i)
         if (scene.objects[size_t(r.patches.object[i])].name == "floor") meanFloor += mean[i][0] / 4;
     EXPECT_NEAR(objectRadiosity(r, scene.objects.size())[0][0], meanFloor, 1e-9);
+    test::expectBalanceByRays(scene, r, 5e-3);
+}
+
+TEST(RayFormFactors, APatchPartlyInANarrowGapShowsTheSceneItsOpenPart) {
+    // The floor under the sky, a black panel facing down 1 cm over [0.25, 1]^2 (its front face to the
+    // floor, so no back face is in sight): the floor beneath sees the panel and little else, and the
+    // scene sees that part of the floor only through the 1 cm slit. As in the roof's test above, at a
+    // floor point B(x) = rho E (F_s - F_p) and the scene sees it by v(x) = 1 - F_p; the origins under
+    // the panel (its normal meets the panel within a quarter of the patch's radius) count as unseen.
+    const Scene scene = test::sceneFromJson(std::string(kFloorUnderSky) + R"(
+        {"name": "panel", "type": "quad", "material": "black",
+         "vertices": [[0.25,0.01,0.25],[1,0.01,0.25],[1,0.01,1],[0.25,0.01,1]]}]})");
+    const SolveResult r = solveFloorUnderSky(scene, 4096);
+    ASSERT_EQ(r.F.seen.size(), r.patches.size());
+    const std::vector<Rgb> mean = meanRadiosity(r.system, r.F, r.solution.B);
+    int under = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        if (scene.objects[size_t(r.patches.object[i])].name != "floor") continue;
+        const Vec3 c = r.patches.centroid[i];
+        const double x0 = std::floor(c.x()), z0 = std::floor(c.z());
+        double vB = 0, v = 0, b = 0;
+        const int grid = 80;
+        for (int a = 0; a < grid; ++a)
+            for (int d = 0; d < grid; ++d) {
+                const double x = x0 + (a + 0.5) / grid, z = z0 + (d + 0.5) / grid;
+                const double panel = test::pointToRectangle(0.25 - x, 1 - x, 0.25 - z, 1 - z, 0.01);
+                const double B = 0.5 * (test::pointToRectangle(-10 - x, 10 - x, -10 - z, 10 - z, 1) - panel);
+                vB += (1 - panel) * B;
+                v += 1 - panel;
+                b += B;
+            }
+        const double seenExact = vB / v, meanExact = b / (grid * grid), shareExact = v / (grid * grid);
+        EXPECT_NEAR(r.F.seen[i], shareExact, 0.03) << "share of the patch the scene sees at " << c.transpose();
+        EXPECT_NEAR(r.solution.B[i][0], seenExact, 0.04 * seenExact) << "what the scene sees at " << c.transpose();
+        EXPECT_NEAR(mean[i][0], meanExact, 0.04 * meanExact) << "the mean over the patch at " << c.transpose();
+        if (x0 == 0 && z0 == 0) {
+            ++under;
+            EXPECT_GT(seenExact, 1.8 * meanExact) << "the test tells the two apart";
+            EXPECT_TRUE(r.F.hasMeanRow(i));
+        }
+    }
+    EXPECT_EQ(under, 1);
     test::expectBalanceByRays(scene, r, 5e-3);
 }
 

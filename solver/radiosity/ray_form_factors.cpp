@@ -20,6 +20,8 @@
 namespace penumbra {
 namespace {
 const Counter g_castRays("form_factors.cast_rays", "rays cast for ray-cast form factors (--form-factors rays)");
+const Counter g_gapRays("form_factors.gap_rays",
+                        "of form_factors.cast_rays, those along a patch's normal asking whether an origin is in a gap");
 // How far ray origins are lifted off their patch along its normal: a millionth of the scene's size.
 double originLift(const PatchSet& patches) {
     const double diagonal = patches.size() ? patchBounds(patches).diagonal().norm() : 1.0;
@@ -73,6 +75,12 @@ bool whollyInside(const PatchSet& patches, const RayScene& rays, size_t i, doubl
 constexpr double kNearRadii = 4;
 // Where a ray landed: near its patch (within kNearRadii radii), or farther.
 constexpr char kNear = 1, kFar = 2;
+// An origin whose patch's normal meets a front face nearer than this many of its patch's radii lies
+// in a narrow gap (a wall behind a shelf's back panel): the rest of the scene hardly sees it.
+constexpr double kGapRadii = 0.25;
+// Origins are tested for a gap where at least 1 in kGapShare of the patch's rays land that near (a
+// patch along a corner sends fewer there, a patch partly in a gap more).
+constexpr int kGapShare = 8;
 // A hit from farther reads the light where it landed only on a patch whose slope moves the light by
 // at least this share of its mean across the patch's radius (a patch part of which lies in a narrow
 // gap, or deep in a cavity): elsewhere the reading adds the patch's neighbours to every row that
@@ -239,6 +247,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     std::mutex backMutex;
     std::atomic<int64_t> analyticNanos{0};  // thread time in the analytic columns
     std::atomic<size_t> hidden{0};          // patches with a mean row
+    std::atomic<size_t> inGaps{0};          // of which part lies in a narrow gap
     Progress progress("form factors (rays)", int64_t(n));
     parallelFor(
         int64_t(n),
@@ -259,6 +268,10 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             // Where each origin's ray landed on its front patch near enough to read the light at that
             // point (kNearRadii), the offset in that patch's frame; and each origin inside a solid.
             std::vector<char> isNear(static_cast<size_t>(count)), isInside(static_cast<size_t>(count));
+            // Per origin: its first ray met a front patch within the gap distance, or a back face; the
+            // origin lies in a gap.
+            constexpr char kCloseHit = 1, kBackHit = 2, kInGap = 4;
+            std::vector<char> gapFlags(static_cast<size_t>(count));
             std::vector<std::array<float, 2>> offset(static_cast<size_t>(count));
             static thread_local std::vector<HitReadings::Near> sums;
             if (sums.size() < n) sums.assign(n, HitReadings::Near{-1, 0, 0, 0});
@@ -290,7 +303,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     count = side * side;
                     if (origins.size() < size_t(count)) {
                         origins.resize(size_t(count)), landed.resize(size_t(count)), offset.resize(size_t(count));
-                        isNear.resize(size_t(count)), isInside.resize(size_t(count));
+                        isNear.resize(size_t(count)), isInside.resize(size_t(count)), gapFlags.resize(size_t(count));
                     }
                 }
                 firstRays += uint64_t(count);
@@ -299,7 +312,8 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 const Vec3 n0 = patches.normal[i];
                 backHits.clear();
                 touched.clear();
-                int analyticHits = 0, inside = 0, followed = 0, backs = 0;
+                int analyticHits = 0, inside = 0, followed = 0, backs = 0, close = 0;
+                const double gap = kGapRadii * patches.radius[i];
                 int wholly = 0;  // the rays cast before the patch was found wholly inside a solid
                 const bool mayBeCovered = !(i < emitting.size() && emitting[i]);
                 shuffledStrata(order, count, rng);
@@ -319,7 +333,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     const Hit h = rays.intersect(origin, dir, 0, 1e30, RayView::Patches);
                     origins[size_t(k)] = origin;
                     landed[size_t(k)] = -1;
-                    isNear[size_t(k)] = isInside[size_t(k)] = 0;
+                    isNear[size_t(k)] = isInside[size_t(k)] = gapFlags[size_t(k)] = 0;
                     if (h.patch < 0) continue;  // out of the scene
                     const size_t j = size_t(h.patch);
                     if (patches.normal[j].dot(dir) >= 0) {
@@ -333,12 +347,14 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                         } else {
                             ++backHits[h.patch];
                             ++backs;
+                            gapFlags[size_t(k)] = kBackHit;
                         }
                     } else if (j < analyticColumns.size() && analyticColumns[j]) {
                         ++analyticHits;
                     } else {
                         landed[size_t(k)] = int32_t(j);
                         if (hits[j]++ == 0) touched.push_back(int32_t(j));
+                        if (h.t < gap) gapFlags[size_t(k)] = kCloseHit, ++close;
                         if (readings) {
                             const Vec3 x = origin + h.t * dir - patches.centroid[j];
                             isNear[size_t(k)] = h.t < nearRadii * patches.radius[j] ? kNear : kFar;
@@ -360,6 +376,37 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     for (int k = 0; k < count; ++k)
                         if (!isInside[size_t(k)]) sum += origins[size_t(k)] - patches.centroid[i];
                     read.shift[i] = {float(sum.dot(tangentU[i]) / open), float(sum.dot(tangentV[i]) / open)};
+                }
+                // Origins in a narrow gap: where at least 1 in kGapShare of the rays landed within the gap
+                // distance, each origin in the open whose patch normal meets a front face that near. A
+                // patch wholly in a gap (a
+                // shelf's back panel, facing the wall 1 cm behind it) holds the gap's light: what its
+                // rays meet within the gap is read as its own, not as the light the room sees of the
+                // far side (which would light the gap from the room).
+                int enclosed = 0;
+                if (close > 0 && close * kGapShare >= open) {
+                    for (int k = 0; k < count; ++k) {
+                        if (isInside[size_t(k)] || (gapFlags[size_t(k)] & kBackHit)) continue;
+                        const Hit h = rays.intersect(origins[size_t(k)], n0, 0, gap, RayView::Patches);
+                        ++followed;
+                        g_gapRays.add(1);
+                        if (h.patch >= 0 && patches.normal[size_t(h.patch)].dot(n0) < 0)
+                            gapFlags[size_t(k)] |= kInGap, ++enclosed;
+                    }
+                    if (enclosed > 0 && open - backs - enclosed <= 0) {
+                        for (int k = 0; k < count; ++k) {
+                            // What the gap's origins meet within it: their own patch's light.
+                            if ((gapFlags[size_t(k)] & (kInGap | kCloseHit)) != (kInGap | kCloseHit)) continue;
+                            --hits[size_t(landed[size_t(k)])];
+                            if (hits[i]++ == 0) touched.push_back(int32_t(i));
+                            landed[size_t(k)] = int32_t(i);
+                            const Vec3 x = origins[size_t(k)] - patches.centroid[i];
+                            isNear[size_t(k)] = readings ? kNear : 0;
+                            offset[size_t(k)] = {float(x.dot(tangentU[i])), float(x.dot(tangentV[i]))};
+                        }
+                        enclosed = 0;
+                        std::fill(gapFlags.begin(), gapFlags.begin() + count, 0);
+                    }
                 }
                 std::vector<std::pair<int32_t, float>>& row = entries[i];
                 if (open == 0) {  // wholly inside a solid: no light reaches it
@@ -393,7 +440,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 else if (!analytic.empty() && exact > 0)
                     for (auto& e : row) e.second = float(e.second / exact);
                 for (int32_t j : touched) {
-                    row.push_back({j, float(scale * hits[size_t(j)] / open)});
+                    if (hits[size_t(j)] > 0) row.push_back({j, float(scale * hits[size_t(j)] / open)});
                     hits[size_t(j)] = 0;
                 }
                 std::sort(row.begin(), row.end());
@@ -404,15 +451,17 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 // A_i F(i -> back of j), with the light of the uncovered part, exposed[i] A_i.
                 for (const auto& [j, h] : backHits)
                     myBack.push_back({int(i), j, scale * patches.area[i] * double(h) / double(count)});
-                if (backs > 0) {
+                if (backs > 0 || enclosed > 0) {
                     // Part of the patch is hidden: what the rest of the scene sees is the light of each
                     // point weighted by how much of the scene sees it, its share of directions that
-                    // meet no back face. That weight is a second ray from the origin, independent of
-                    // the first: an origin's light counts where its second ray meets no back face,
-                    // over the origins whose first ray met none. The row above stays as the mean.
-                    const int unhidden = open - backs;
+                    // meet no back face, and none if it lies in a gap. That weight is a second ray from
+                    // the origin, independent of the first: an origin's light counts where its second
+                    // ray meets no back face, over the origins whose first ray met none (without back
+                    // faces, every origin not in a gap counts). The row above stays as the mean.
+                    const int unhidden = open - backs - enclosed;
                     seen[i] = float(unhidden) / float(open);
                     ++hidden;
+                    if (enclosed > 0) ++inGaps;
                     meanEntries[i].swap(row);
                     read.meanRows[i].swap(read.rows[i]);
                     read.farMeanRows[i].swap(read.farRows[i]);
@@ -421,7 +470,12 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     std::vector<char> counted(static_cast<size_t>(count), 0);
                     for (int k = 0; k < count; ++k) {
                         const int32_t j = landed[size_t(k)];
-                        if (j < 0) continue;
+                        if (j < 0 || (gapFlags[size_t(k)] & kInGap)) continue;
+                        if (backs == 0) {
+                            counted[size_t(k)] = 1;
+                            if (hits[size_t(j)]++ == 0) touched.push_back(j);
+                            continue;
+                        }
                         const double e1 = rng.uniform();
                         const Vec3 dir = around(e1, rng.uniform());
                         const Hit h = rays.intersect(origins[size_t(k)], dir, 0, 1e30, RayView::Patches);
@@ -469,7 +523,9 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     F.seen = std::move(seen);
     F.setMeanRows(std::move(meanStart), std::move(meanColumn), std::move(meanValue));
     sortBackTransfers(F.backTransfers);
-    if (hidden) logInfo("form factors (rays): ", size_t(hidden), " patches partly hidden behind back faces");
+    if (hidden)
+        logInfo("form factors (rays): ", size_t(hidden), " patches partly hidden (", size_t(hidden) - size_t(inGaps),
+                " behind back faces, ", size_t(inGaps), " in narrow gaps)");
     logInfo("form factors (rays): ", size_t(rowsCast), " patches, ",
             raysFor.empty() ? cat(baseCount, " rays each, ")
                             : cat(double(firstRays) / std::max<size_t>(rowsCast, 1), " rays each on average, "),
