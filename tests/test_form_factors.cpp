@@ -686,3 +686,25 @@ TEST(RayFormFactors, AnObjectAboveTheNoiseTargetCastsAgainAndHoldsItsClosedForm)
     const double floorMean = objectRadiosity(again, scene.objects.size())[floor][0];
     EXPECT_NEAR(floorMean, exact, 0.015 * exact) << "the merged rows hold the closed form";
 }
+
+TEST(RayFormFactors, ASmallObjectAsksAtMostFourTimesTheRays) {
+    // A 0.2 m tile facing the floor from 0.3 m up: its rays meet the floor or leave the scene, noisy at
+    // 16 rays. Smaller than three of the mesh's 1 m patches, it casts again with at most 4x the rays
+    // (its own noise at least half of the first pass's), however far above --ff-noise it is.
+    const Scene scene = test::sceneFromJson(std::string(kFloorUnderSky) + R"(
+        {"name": "tile", "type": "quad", "material": "floor",
+         "vertices": [[0.4,0.3,0.4],[0.6,0.3,0.4],[0.6,0.3,0.6],[0.4,0.3,0.6]]}]})");
+    const size_t tile = scene.objects.size() - 1;
+    SolveOptions o;
+    o.meshing.patchSize = 1.0;
+    o.formFactors.method = "rays";
+    o.formFactors.raysPerPatch = 16;
+    o.grading.levels = 0;
+    o.formFactors.objectNoise = 1;
+    const SolveResult once = solveScene(scene, o);
+    ASSERT_GT(once.objectNoise[tile], 0.05) << "the test's tile is noisy";
+    o.formFactors.objectNoise = 0.005;
+    const SolveResult again = solveScene(scene, o);
+    EXPECT_LT(again.objectNoise[tile], 0.8 * once.objectNoise[tile]) << "it casts again";
+    EXPECT_GT(again.objectNoise[tile], 0.4 * once.objectNoise[tile]) << "with at most 4x the rays, not 64x";
+}
