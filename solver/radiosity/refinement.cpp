@@ -71,12 +71,14 @@ SplitChoice chooseSplits(const PatchSet& p, const RadiositySystem& s, const Form
                 Rgb mean = Rgb::Zero();
                 for (int k = 0; k < p.cornerCount[i]; ++k) mean += corners[i][size_t(k)] / double(p.cornerCount[i]);
                 Rgb gathered[5];
-                std::vector<char> sees(n, 0);
-                F.forEachInRow(i, [&](size_t j, float) { sees[j] = 1; });
+                // The patches row i sees, in column order (the test of every patch in the scene at each
+                // point had made a round quadratic in the patches: 21% of a 34,000-patch round).
+                static thread_local std::vector<size_t> sees;
+                sees.clear();
+                F.forEachInRow(i, [&](size_t j, float) { sees.push_back(j); });
                 const double lift = 1e-6 + 1e-4 * p.radius[i];
                 for (int k = 0; k < count; ++k)
-                    gathered[k] = irradianceAtPoint(p, B, rays, points[k] + lift * p.normal[i], p.normal[i],
-                                                    [&](size_t j) { return sees[j] != 0; });
+                    gathered[k] = irradianceAtPoint(p, B, rays, points[k] + lift * p.normal[i], p.normal[i], sees);
                 for (int k = 0; k < count; ++k) {
                     const Rgb solved = s.emission[i] + s.reflectance[i] * gathered[k];
                     const int nc = p.cornerCount[i];

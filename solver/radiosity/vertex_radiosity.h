@@ -37,6 +37,16 @@ Rgb irradianceAtPoint(const PatchSet& p, const std::vector<Rgb>& B, const RaySce
     return h;
 }
 
+// The same from the listed patches (ascending, as a row's columns): the cost of the list, not of
+// every patch in the scene.
+inline Rgb irradianceAtPoint(const PatchSet& p, const std::vector<Rgb>& B, const RayScene& rays, const Vec3& x,
+                             const Vec3& n, const std::vector<size_t>& from) {
+    Rgb h = Rgb::Zero();
+    for (size_t j : from)
+        if (B[j].maxCoeff() > 0) h += visiblePointFactor(p, rays, x, n, j) * B[j];
+    return h;
+}
+
 // Irradiance at the point x (unit normal n) from the listed source patches, W/m^2: the unoccluded
 // point-to-patch factors in closed form, times the visibility that about `rayCount` shadow rays find.
 // The rays go to the sources in proportion to each one's unoccluded share (by brightness), to the
