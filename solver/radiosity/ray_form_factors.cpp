@@ -385,14 +385,15 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 // far side (which would light the gap from the room).
                 int enclosed = 0;
                 if (close > 0 && close * kGapShare >= open) {
+                    const int before = followed;
                     for (int k = 0; k < count; ++k) {
                         if (isInside[size_t(k)] || (gapFlags[size_t(k)] & kBackHit)) continue;
                         const Hit h = rays.intersect(origins[size_t(k)], n0, 0, gap, RayView::Patches);
                         ++followed;
-                        g_gapRays.add(1);
                         if (h.patch >= 0 && patches.normal[size_t(h.patch)].dot(n0) < 0)
                             gapFlags[size_t(k)] |= kInGap, ++enclosed;
                     }
+                    g_gapRays.add(uint64_t(followed - before));
                     if (enclosed > 0 && open - backs - enclosed <= 0) {
                         for (int k = 0; k < count; ++k) {
                             // What the gap's origins meet within it: their own patch's light.
