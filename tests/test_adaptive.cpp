@@ -102,6 +102,34 @@ TEST_P(VertexRadiosity, MeetsTheClosedFormOfAPointUnderARectangle) {
 
 INSTANTIATE_TEST_SUITE_P(Modes, VertexRadiosity, ::testing::Values("gather", "direct"));
 
+TEST(VertexRadiosity, ACeilingAboveALampSeesItsBackNotItsLight) {
+    // The lamp (facing down, 1 m up) with a ceiling 1 cm above it, facing down too (the building's
+    // lamps under its ceilings). The ceiling sees the floor and the lamp's back: its irradiance is at
+    // most the floor's brightest radiosity, rho E F(0 -> lamp), the ceiling's own light on the floor
+    // adding a few percent. Read as the lamp's front, the ceiling's vertices above the lamp showed
+    // rho E F(1 cm -> lamp), about 80 times that.
+    std::string json = lampOverFloor(false);
+    json.insert(json.rfind(']'), R"(,
+        {"name": "ceiling", "type": "quad", "material": "floor",
+         "vertices": [[-1,-1,1.01],[-1,1,1.01],[1,1,1.01],[1,-1,1.01]]})");
+    SolveOptions o;
+    o.meshing.patchSize = 0.2;
+    o.vertexRadiosity = "direct";
+    const Scene scene = test::sceneFromJson(json);
+    const SolveResult r = solveScene(scene, o);
+    const double bound = 1.2 * 0.5 * unshadowedFloor(Vec3::Zero());
+    int above = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        if (scene.objects[size_t(r.patches.object[i])].name != "ceiling") continue;
+        for (int k = 0; k < r.patches.cornerCount[i]; ++k) {
+            const Vec3& x = r.patches.corners[i][size_t(k)];
+            above += std::abs(x.x()) < 0.1 && std::abs(x.y()) < 0.1;
+            EXPECT_LT(r.corners[i][size_t(k)][0], bound) << "ceiling corner at " << x.transpose();
+        }
+    }
+    EXPECT_GT(above, 0) << "a ceiling vertex lies above the lamp";
+}
+
 TEST(VertexRadiosity, DirectDrawsThePenumbraAtTheVertices) {
     // The black square halfway up hides part of the lamp from floor points 0.3 to 0.5 m off the axis:
     // from x it covers, in the lamp's plane, the square of side 0.8 centred at -x (its shadow cast

@@ -117,7 +117,10 @@ Rgb directIrradiance(const PatchSet& p, const std::vector<Rgb>& B, const RayScen
     double total = 0;
     for (size_t k = 0; k < sources.size(); ++k) {
         const size_t j = sources[k];
-        const double f = pointPolygonFormFactor(x, n, p.corners[j].data(), p.cornerCount[j]);
+        // Only a source's front lights x: a ceiling above a lamp hung 1 cm below it sees the lamp's
+        // back, which the point-to-polygon factor alone counts as nearly a hemisphere of light.
+        const bool front = p.normal[j].dot(x - p.centroid[j]) > 0;
+        const double f = front ? pointPolygonFormFactor(x, n, p.corners[j].data(), p.cornerCount[j]) : 0;
         full[k] = f > 0 ? Rgb(f * B[j]) : Rgb::Zero();
         total += full[k].sum();
     }
