@@ -223,7 +223,8 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     Timer timer;
     const CounterValues before = counterValues();
     const std::vector<Image> images =
-        entry.render(RenderInputs{scene, stored.patches, stored.corners, stored.rays, c.gather, c.photons, common.seed},
+        entry.render(RenderInputs{scene, stored.patches, stored.corners, stored.rays, c.gather, c.photons, common.seed,
+                                  &stored.solution.display},
                      cameras, spp);
     const double seconds = timer.seconds();
     std::string counted;
@@ -266,7 +267,7 @@ int runView(RenderCli& c, SolveCli& s, ViewerOptions& options, const CommonOptio
         const std::string parent = std::filesystem::path(options.screenshot).parent_path().string();
         if (!parent.empty()) ensureDirectory(parent);
     }
-    runViewer(scene, stored.patches, stored.corners, camera, options);
+    runViewer(scene, stored.patches, stored.corners, stored.solution.display, camera, options);
     return 0;
 }
 

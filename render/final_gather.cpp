@@ -105,10 +105,22 @@ Image renderFinalGather(const FinalGather& gather, const Camera& camera, int sam
                         [&](const Vec3& o, const Vec3& d, Rng& rng) { return gather.radiance(o, d, rng); });
 }
 
+CornerValues meanPreservingCorners(const PatchSet& patches, CornerValues corners, const std::vector<Rgb>& means) {
+    for (size_t i = 0; i < corners.size() && i < means.size(); ++i) {
+        const int n = patches.cornerCount[i];
+        Rgb mean = Rgb::Zero();
+        for (int k = 0; k < n; ++k) mean += corners[i][size_t(k)];
+        const Rgb shift = means[i] - mean / double(n);
+        for (Rgb& c : corners[i]) c += shift;
+    }
+    return corners;
+}
+
 SolvedScene::SolvedScene(const Scene& scene, const PatchSet& patches, CornerValues cornerRadiosity,
                          const GatherSettings& settings, PhotonSettings photons, uint64_t seed,
-                         std::shared_ptr<const RayScene> rays)
-    : corners_(std::move(cornerRadiosity)), tracer_(std::make_unique<SceneTracer>(scene, patches, std::move(rays))) {
+                         std::shared_ptr<const RayScene> rays, const std::vector<Rgb>* means)
+    : corners_(means ? meanPreservingCorners(patches, std::move(cornerRadiosity), *means) : std::move(cornerRadiosity)),
+      tracer_(std::make_unique<SceneTracer>(scene, patches, std::move(rays))) {
     if (tracer_->hasSpecular()) {
         photons.seed = seed;
         caustics_ = std::make_unique<PhotonMap>(*tracer_, photons);

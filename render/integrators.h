@@ -27,6 +27,9 @@ struct RenderInputs {
     GatherSettings gather;
     PhotonSettings photons;
     uint64_t seed = 1;
+    // The displayed radiosity per patch: the final gather reads corners whose mean over each patch
+    // is this (meanPreservingCorners); without it, the corners as they are.
+    const std::vector<Rgb>* means = nullptr;
 };
 
 struct IntegratorEntry {

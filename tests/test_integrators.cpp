@@ -13,6 +13,7 @@
 #include "render/image_metrics.h"
 #include "render/path_tracer.h"
 #include "render/photon_map.h"
+#include "render/radiosity_view.h"
 #include "statistics.h"
 
 using namespace penumbra;
@@ -184,4 +185,38 @@ TEST(Determinism, RendersDoNotDependOnTheThreadCountAndSeedsChangeOnlyNoise) {
     const double limit = test::zLimit(test::sidak(1e-4, 2));
     EXPECT_LT(std::abs(z(path3, path1)), limit) << "path tracer, seeds 2 and 1";
     EXPECT_LT(std::abs(z(gather3, gather1)), limit) << "final gather, seeds 2 and 1";
+}
+
+TEST(FinalGather, ReadsCornersWhoseMeanIsThePatchsRadiosity) {
+    // What a gather ray from afar reads, averaged over where it lands on a patch, must be the patch's
+    // radiosity; the displayed corners keep their shape across it (a ramp stays a ramp) but are
+    // shifted to that mean. Quads and triangles (whose fourth corner repeats the third).
+    const Scene scene = test::sceneFromJson(test::lampOverFloor(false));
+    MeshingOptions o;
+    o.patchSize = 0.5;
+    const PatchSet p = meshScene(scene, o);
+    CornerValues corners(p.size());
+    std::vector<Rgb> means(p.size());
+    for (size_t i = 0; i < p.size(); ++i) {
+        for (int k = 0; k < 4; ++k) corners[i][size_t(k)] = Rgb::Constant(1 + p.corners[i][size_t(k)].x());
+        means[i] = Rgb::Constant(2 + 0.1 * double(i));
+    }
+    const CornerValues shifted = meanPreservingCorners(p, corners, means);
+    for (size_t i = 0; i < p.size(); ++i) {
+        const int n = p.cornerCount[i];
+        Rgb mean = Rgb::Zero();
+        for (int k = 0; k < n; ++k) mean += shifted[i][size_t(k)] / double(n);
+        EXPECT_NEAR(mean[0], means[i][0], 1e-12) << "patch " << i;
+        for (int k = 1; k < n; ++k)
+            EXPECT_NEAR(shifted[i][size_t(k)][0] - shifted[i][0][0], corners[i][size_t(k)][0] - corners[i][0][0],
+                        1e-12);
+        // The interpolation's mean over the patch, by a grid of points in its parameters.
+        double sum = 0;
+        const int g = 40;
+        for (int a = 0; a < g; ++a)
+            for (int b = 0; b < g; ++b) sum += interpolateAt(p, i, (a + 0.5) / g, (b + 0.5) / g, shifted[i])[0];
+        if (!p.isTriangle(i)) {
+            EXPECT_NEAR(sum / (g * g), means[i][0], 1e-9) << "patch " << i;
+        }
+    }
 }

@@ -46,7 +46,8 @@ std::unique_ptr<Pair> renderAll(const std::string& file, int size, int gatherSpp
     p->camera.width = p->camera.height = size;
     SolveOptions options;
     p->solved = solveScene(p->scene, options);
-    const SolvedScene solved(p->scene, p->solved.patches, p->solved.corners, {}, {}, 1, p->solved.rays);
+    const SolvedScene solved(p->scene, p->solved.patches, p->solved.corners, {}, {}, 1, p->solved.rays,
+                             &p->solved.solution.display);
     p->gather = solved.render(p->camera, gatherSpp, 1);
     p->radiosity =
         renderRadiosityView(p->scene, p->camera, p->solved.patches, *p->solved.rays, p->solved.corners, {4, 1});

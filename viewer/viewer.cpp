@@ -187,14 +187,15 @@ struct Keys {
 // until cancelled; the main thread shows the running mean.
 class Progressive {
 public:
-    Progressive(const Scene& scene, const PatchSet& patches, const CornerValues& corners)
-        : scene_(scene), patches_(patches), corners_(corners) {}
+    Progressive(const Scene& scene, const PatchSet& patches, const CornerValues& corners, const std::vector<Rgb>& means)
+        : scene_(scene), patches_(patches), corners_(corners), means_(means) {}
     ~Progressive() { stop(); }
 
     void start(const Camera& camera) {
         stop();
         if (!solved_)
-            solved_ = std::make_unique<SolvedScene>(scene_, patches_, corners_, GatherSettings{}, PhotonSettings{}, 1);
+            solved_ = std::make_unique<SolvedScene>(scene_, patches_, corners_, GatherSettings{}, PhotonSettings{}, 1,
+                                                    nullptr, means_.empty() ? nullptr : &means_);
         camera_ = camera;
         cancel_ = false;
         passes_ = 0;
@@ -229,6 +230,7 @@ private:
     const Scene& scene_;
     const PatchSet& patches_;
     const CornerValues& corners_;
+    const std::vector<Rgb>& means_;
     std::unique_ptr<SolvedScene> solved_;  // built on the first G
     Camera camera_;
     std::thread worker_;
@@ -263,8 +265,8 @@ void requireDisplay() {
             "export DIR --out FILE.glb`, or run the viewer under `xvfb-run -a`");
 }
 
-void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& corners, const Camera& start,
-               const ViewerOptions& options) {
+void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& corners, const std::vector<Rgb>& means,
+               const Camera& start, const ViewerOptions& options) {
     requireDisplay();
     if (!glfwInit()) throw Error("view: GLFW could not start (no usable display)");
     struct Terminate {
@@ -356,7 +358,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
     ImGui_ImplOpenGL3_Init("#version 330");
 
     Navigation nav;
-    Progressive progressive(scene, patches, corners);
+    Progressive progressive(scene, patches, corners, means);
     Camera progressiveView;
     GLuint gatherTexture = 0;
     glGenTextures(1, &gatherTexture);

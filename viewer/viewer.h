@@ -25,9 +25,9 @@ struct ViewerOptions {
 // Throws Error, pointing to the headless forms, when there is no display to open a window on.
 void requireDisplay();
 
-// `corners`: the displayed radiosity at each patch corner. Throws Error when no window can be opened
-// (no display).
-void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& corners, const Camera& start,
-               const ViewerOptions& options);
+// `corners`: the displayed radiosity at each patch corner, `means` per patch (the final gather's
+// reading, meanPreservingCorners). Throws Error when no window can be opened (no display).
+void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& corners, const std::vector<Rgb>& means,
+               const Camera& start, const ViewerOptions& options);
 
 }  // namespace penumbra
