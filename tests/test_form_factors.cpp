@@ -401,6 +401,43 @@ TEST(RayFormFactors, APatchWhollyInASolidCastsNoRaysOfItsOwn) {
     EXPECT_GT(objectRadiosity(r, scene.objects.size())[0][0], 0.0);
 }
 
+// The floor under the sky with a black square facing it `height` over [0.25, 1]^2 (a roof showing
+// its back, or a panel its front): at a floor point x, with F_o(x) the factor to the square and F_s(x)
+// to the sky (Howell's point-to-rectangle), B(x) = rho E (F_s - F_o), and the scene sees x by
+// v(x) = 1 - F_o. Per floor patch, over a grid x grid of points: the share the scene sees, what it
+// sees (the mean of B weighted by v) and the plain mean, against the solve's seen share, B and mean.
+// The patch under the square must tell the two apart by `apart`, and have its mean row.
+void expectSeenAndMeanUnder(const Scene& scene, const SolveResult& r, const std::vector<Rgb>& mean, double height,
+                            int grid, double apart) {
+    int under = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        if (scene.objects[size_t(r.patches.object[i])].name != "floor") continue;
+        const Vec3 c = r.patches.centroid[i];
+        const double x0 = std::floor(c.x()), z0 = std::floor(c.z());
+        double vB = 0, v = 0, b = 0;
+        for (int a = 0; a < grid; ++a)
+            for (int d = 0; d < grid; ++d) {
+                const double x = x0 + (a + 0.5) / grid, z = z0 + (d + 0.5) / grid;
+                const double over = test::pointToRectangle(0.25 - x, 1 - x, 0.25 - z, 1 - z, height);
+                const double B = 0.5 * (test::pointToRectangle(-10 - x, 10 - x, -10 - z, 10 - z, 1) - over);
+                vB += (1 - over) * B;
+                v += 1 - over;
+                b += B;
+            }
+        const double seenExact = vB / v, meanExact = b / (grid * grid), shareExact = v / (grid * grid);
+        EXPECT_EQ(r.F.exposed[i], 1.0f) << "an open square covers nothing";
+        EXPECT_NEAR(r.F.seen[i], shareExact, 0.03) << "share of the patch the scene sees at " << c.transpose();
+        EXPECT_NEAR(r.solution.B[i][0], seenExact, 0.04 * seenExact) << "what the scene sees at " << c.transpose();
+        EXPECT_NEAR(mean[i][0], meanExact, 0.04 * meanExact) << "the mean over the patch at " << c.transpose();
+        if (x0 == 0 && z0 == 0) {
+            ++under;
+            EXPECT_GT(seenExact, apart * meanExact) << "the test tells the two apart";
+            EXPECT_TRUE(r.F.hasMeanRow(i));
+        }
+    }
+    EXPECT_EQ(under, 1);
+}
+
 TEST(RayFormFactors, APatchPartlyHiddenShowsTheSceneWhatItSeesAndKeepsItsMean) {
     // A floor of four 1 m patches under a 20 m sky (E = 1), a one-sided black roof facing up 0.1 m over
     // [0.25, 1]^2, most of one patch: from beneath, the roof shows its back face. Not a solid (its
@@ -416,34 +453,7 @@ TEST(RayFormFactors, APatchPartlyHiddenShowsTheSceneWhatItSeesAndKeepsItsMean) {
     ASSERT_EQ(r.F.seen.size(), r.patches.size());
     // The roof's patch: B from a share of about half its 4,096 rays, 1.6% standard error; 4% is 2.5 of them.
     const std::vector<Rgb> mean = meanRadiosity(r.system, r.F, r.solution.B);
-    int under = 0;
-    for (size_t i = 0; i < r.patches.size(); ++i) {
-        if (scene.objects[size_t(r.patches.object[i])].name != "floor") continue;
-        const Vec3 c = r.patches.centroid[i];
-        const double x0 = std::floor(c.x()), z0 = std::floor(c.z());
-        double vB = 0, v = 0, b = 0;
-        const int grid = 40;
-        for (int a = 0; a < grid; ++a)
-            for (int d = 0; d < grid; ++d) {
-                const double x = x0 + (a + 0.5) / grid, z = z0 + (d + 0.5) / grid;
-                const double roof = test::pointToRectangle(0.25 - x, 1 - x, 0.25 - z, 1 - z, 0.1);
-                const double B = 0.5 * (test::pointToRectangle(-10 - x, 10 - x, -10 - z, 10 - z, 1) - roof);
-                vB += (1 - roof) * B;
-                v += 1 - roof;
-                b += B;
-            }
-        const double seenExact = vB / v, meanExact = b / (grid * grid), shareExact = v / (grid * grid);
-        EXPECT_EQ(r.F.exposed[i], 1.0f) << "an open roof covers nothing";
-        EXPECT_NEAR(r.F.seen[i], shareExact, 0.03) << "share of directions free of back faces at " << c.transpose();
-        EXPECT_NEAR(r.solution.B[i][0], seenExact, 0.04 * seenExact) << "what the scene sees at " << c.transpose();
-        EXPECT_NEAR(mean[i][0], meanExact, 0.04 * meanExact) << "the mean over the patch at " << c.transpose();
-        if (x0 == 0 && z0 == 0) {
-            ++under;
-            EXPECT_GT(seenExact, 1.4 * meanExact) << "the test tells the two apart";
-            EXPECT_TRUE(r.F.hasMeanRow(i));
-        }
-    }
-    EXPECT_EQ(under, 1);
+    expectSeenAndMeanUnder(scene, r, mean, 0.1, 40, 1.4);
     // The report's floor is the plain mean, and the power adds up with the escaped light counted by rays.
     double meanFloor = 0;
     for (size_t i = 0; i < r.patches.size(); ++i)
@@ -464,33 +474,7 @@ TEST(RayFormFactors, APatchPartlyInANarrowGapShowsTheSceneItsOpenPart) {
     const SolveResult r = solveFloorUnderSky(scene, 4096);
     ASSERT_EQ(r.F.seen.size(), r.patches.size());
     const std::vector<Rgb> mean = meanRadiosity(r.system, r.F, r.solution.B);
-    int under = 0;
-    for (size_t i = 0; i < r.patches.size(); ++i) {
-        if (scene.objects[size_t(r.patches.object[i])].name != "floor") continue;
-        const Vec3 c = r.patches.centroid[i];
-        const double x0 = std::floor(c.x()), z0 = std::floor(c.z());
-        double vB = 0, v = 0, b = 0;
-        const int grid = 80;
-        for (int a = 0; a < grid; ++a)
-            for (int d = 0; d < grid; ++d) {
-                const double x = x0 + (a + 0.5) / grid, z = z0 + (d + 0.5) / grid;
-                const double panel = test::pointToRectangle(0.25 - x, 1 - x, 0.25 - z, 1 - z, 0.01);
-                const double B = 0.5 * (test::pointToRectangle(-10 - x, 10 - x, -10 - z, 10 - z, 1) - panel);
-                vB += (1 - panel) * B;
-                v += 1 - panel;
-                b += B;
-            }
-        const double seenExact = vB / v, meanExact = b / (grid * grid), shareExact = v / (grid * grid);
-        EXPECT_NEAR(r.F.seen[i], shareExact, 0.03) << "share of the patch the scene sees at " << c.transpose();
-        EXPECT_NEAR(r.solution.B[i][0], seenExact, 0.04 * seenExact) << "what the scene sees at " << c.transpose();
-        EXPECT_NEAR(mean[i][0], meanExact, 0.04 * meanExact) << "the mean over the patch at " << c.transpose();
-        if (x0 == 0 && z0 == 0) {
-            ++under;
-            EXPECT_GT(seenExact, 1.8 * meanExact) << "the test tells the two apart";
-            EXPECT_TRUE(r.F.hasMeanRow(i));
-        }
-    }
-    EXPECT_EQ(under, 1);
+    expectSeenAndMeanUnder(scene, r, mean, 0.01, 80, 1.8);
     test::expectBalanceByRays(scene, r, 5e-3);
 }
 
