@@ -379,10 +379,9 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 }
                 // Origins in a narrow gap: where at least 1 in kGapShare of the rays landed within the gap
                 // distance, each origin in the open whose patch normal meets a front face that near. A
-                // patch wholly in a gap (a
-                // shelf's back panel, facing the wall 1 cm behind it) holds the gap's light: what its
-                // rays meet within the gap is read as its own, not as the light the room sees of the
-                // far side (which would light the gap from the room).
+                // patch wholly in a gap (a shelf's back panel, facing the wall 1 cm behind it) holds
+                // the gap's light: what its rays meet within the gap is read as its own, not as the
+                // light the room sees of the far side (which would light the gap from the room).
                 int enclosed = 0;
                 if (close > 0 && close * kGapShare >= open) {
                     const int before = followed;
