@@ -41,7 +41,8 @@ TEST(Counters, ASolveCountsWhatItsGeometryImplies) {
     // Two parallel unit squares facing each other at distance 1, each meshed into k patches: every
     // patch of one faces every patch of the other and none of its own (k^2 facing pairs), nothing
     // stands between them (no pair occluded or partly visible, so each pair casts exactly the
-    // visibility rays asked for), and one ray scene serves the solve.
+    // visibility rays asked for twice: a set that decides how to sample, then the set that measures),
+    // and one ray scene serves the solve.
     const std::string json = R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5, "emission": 1}},
       "objects": [
         {"name": "a", "type": "quad", "material": "m", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]},
@@ -55,7 +56,7 @@ TEST(Counters, ASolveCountsWhatItsGeometryImplies) {
     EXPECT_EQ(r.counters.at("form_factors.facing_pairs"), k * k);
     EXPECT_EQ(r.counters.at("form_factors.occluded_pairs"), 0u);
     EXPECT_EQ(r.counters.at("form_factors.partly_visible_pairs"), 0u);
-    EXPECT_EQ(r.counters.at("form_factors.visibility_rays"), 4 * k * k);
+    EXPECT_EQ(r.counters.at("form_factors.visibility_rays"), 2 * 4 * k * k);
     EXPECT_EQ(r.counters.at("rays.scenes_built"), 1u);
     EXPECT_EQ(r.counters.at("specular.rays"), 0u) << "no mirrors or glass";
     EXPECT_GE(r.counters.at("rays.occlusion"), r.counters.at("form_factors.visibility_rays"));

@@ -139,15 +139,13 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
     const ClippedPolygon partA = clipped ? clipToSide(p, a, b, nb) : ClippedPolygon{};
     const ClippedPolygon partB = clipped ? clipToSide(p, b, a, na) : ClippedPolygon{};
     if (clipped && (partA.count < 3 || partB.count < 3 || !(partA.area > 0) || !(partB.area > 0))) return {0.0, 0};
-    // Each segment counts with the point-to-patch factor from its end on the larger patch to the
-    // smaller one: a shadow that falls where that patch sees the other best (a desk under a lamp,
-    // the floor under the desk) takes its share of the factor, not of the area.
-    // The weights are needed only where the rays disagree: each segment's end on the larger patch
-    // is kept until then.
-    const bool aLarger = p.area[a] >= p.area[b];
-    const size_t small = aLarger ? b : a;
-    const Vec3& nLarge = aLarger ? na : nb;
-    thread_local std::vector<std::pair<Vec3, bool>> ends;
+    // Each segment counts with the kernel between its ends, cos cos / r^2: a shadow that falls where
+    // the patches see each other best (a desk under a lamp, the floor under the desk) takes its share
+    // of the factor, not of the area; and the part of the other patch a point sees past an edge,
+    // its share of what that point receives (weighing each point by its factor to the whole other
+    // patch instead read the lamp over a shadowed floor 0.7% dark). The weights are needed only where
+    // the rays disagree: each segment's kernel is kept until then.
+    thread_local std::vector<std::pair<double, bool>> ends;
     ends.clear();
     int visible = 0, rays = 0;
     // `count` segments whose ends cover both patches evenly: the largest full grid of strata that
@@ -155,9 +153,14 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
     // band of every patch unsampled, and bias every penumbra it crosses).
     auto cast = [&](int count) {
         const int side = std::max(1, int(std::sqrt(double(count) + 0.5))), strata = side * side;
+        // Strata of a paired with those of b in a random order: a fixed pairing samples the same
+        // few cell pairs of the two patches every time, and is biased wherever visibility depends on
+        // both ends (the floor seeing a lamp through a door).
+        thread_local std::vector<int> order;
+        shuffledStrata(order, strata, rng);
         for (int k = 0; k < count; ++k) {
             const bool gridded = k < strata;
-            const int sa = gridded ? k : 0, sb = gridded ? decorrelatedStratum(k, strata) : 0;
+            const int sa = gridded ? k : 0, sb = gridded ? order[size_t(k)] : 0;
             const int sideOf = gridded ? side : 1;
             const Vec3 from = clipped ? uniformPoint(partA, rng) : stratifiedPoint(p, a, sa, sideOf, rng);
             const Vec3 to = clipped ? uniformPoint(partB, rng) : stratifiedPoint(p, b, sb, sideOf, rng);
@@ -178,21 +181,36 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
                 }
             }
             visible += open;
-            ends.emplace_back(aLarger ? from : to, open);
+            const Vec3 d = to - from;
+            const double r2 = d.squaredNorm();
+            ends.emplace_back(std::max(0.0, na.dot(d)) * std::max(0.0, -nb.dot(d)) / std::max(r2 * r2, 1e-300), open);
         }
     };
+    // The share of the segments that are open, each weighted by its kernel (where the rays disagree:
+    // otherwise 0 or 1).
+    auto weightedFraction = [&](int open, int count) {
+        if (open == 0 || open == count) return double(open) / count;
+        double seen = 0, weights = 0;
+        for (const auto& [w, isOpen] : ends) {
+            weights += w;
+            seen += isOpen ? w : 0;
+        }
+        return weights > 0 ? seen / weights : double(open) / count;
+    };
+    // The first rays only decide how to sample; the estimate is made of the rays cast after them: where
+    // the first disagree (a shadow edge crosses the pair), 4x as many, else as many again. Had the
+    // first rays been kept (all blocked: 0, else refined together with them), a pair whose patches see
+    // each other through a narrow opening (the floor of a room, a corridor's lamp through the door)
+    // would lose most of its light: at a visible share v and four independent rays, the mean came to
+    // about 0.2 v + 3.2 v^2 (v = 0.1: 0.048), since the four that decide are mostly all blocked and
+    // otherwise hold more open rays than their share; and a pair whose first rays all pass, a small
+    // shadow, would read wholly open.
     cast(base);
-    // Where the first rays disagree, a shadow edge crosses the pair: a full grid four times finer.
-    if (visible > 0 && visible < rays) cast(4 * base);
-    if (visible == 0 || visible == rays) return {double(visible) / rays, rays};
-    double seen = 0, weights = 0;
-    for (const auto& [x, open] : ends) {
-        const double w = pointPolygonFormFactor(x, nLarge, p.corners[small].data(), p.cornerCount[small]);
-        weights += w;
-        seen += open ? w : 0;
-    }
-    if (!(weights > 0)) return {double(visible) / rays, rays};
-    return {seen / weights, rays};
+    const int decided = rays;
+    const bool edge = visible > 0 && visible < rays;
+    ends.clear(), visible = 0, rays = 0;
+    cast(edge ? 4 * base : base);
+    return {weightedFraction(visible, rays), rays + decided};
 }
 
 FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& scene,
