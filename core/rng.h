@@ -4,7 +4,6 @@
 
 #include <cstddef>
 #include <cstdint>
-#include <numeric>
 #include <utility>
 #include <vector>
 
@@ -75,23 +74,13 @@ inline int stratumSide(int count) {
     return side;
 }
 
-// Stratum k of `count` sent to another by a fixed permutation, k m + 3 mod count with m coprime to
-// count: a sample whose two parts (origin and direction, the two ends of a segment) are each
-// stratified, without pairing stratum k of one with stratum k of the other. (A multiplier sharing a
-// factor with count, as 7 does with 49, would visit some strata twice and others never: a bias.)
-inline int decorrelatedStratum(int k, int count) {
-    int m = 7;
-    while (std::gcd(m, count) != 1) m += 2;
-    return int((int64_t(k) * m + 3) % count);
-}
-
 // The strata 0 .. count-1 in a random order (Fisher-Yates): stratum k of a sample's first part paired
 // with order[k] of its second, each part stratified and the pairing unbiased. A fixed permutation
-// (decorrelatedStratum) pairs the same strata every time, which biases any integrand whose two parts
-// interact, as a point's visibility depends on where it is and where it looks: under a low roof it
-// read 1.2% too few rays meeting the roof, whatever the seed, and the Cornell box's face in the short
-// block's shadow +2.1% (over six seeds; +0.6% over eight with this order). The same fixed
-// permutation shifted at random per row was no better there (+2.3%).
+// (k m + 3 mod count, used until 2026-12-05) pairs the same strata every time, which biases any integrand whose two
+// parts interact, as a point's visibility depends on where it is and where it looks: under a low roof it read 1.2% too
+// few rays meeting the roof, whatever the seed, and the Cornell box's face in the short block's shadow +2.1% (over six
+// seeds; +0.6% over eight with this order). The same fixed permutation shifted at random per row was no better there
+// (+2.3%).
 inline void shuffledStrata(std::vector<int>& order, int count, Rng& rng) {
     using std::size_t;
     order.resize(size_t(count));

@@ -29,14 +29,6 @@ TEST(Counters, SumEveryThreadsCountsExactly) {
     EXPECT_TRUE(counterDescription("no.such.counter").empty());
 }
 
-TEST(Strata, TheDecorrelatingPermutationVisitsEveryStratumOnce) {
-    for (int count = 1; count <= 400; ++count) {
-        std::vector<int> seen(size_t(count), 0);
-        for (int k = 0; k < count; ++k) ++seen[size_t(decorrelatedStratum(k, count))];
-        ASSERT_EQ(std::count(seen.begin(), seen.end(), 1), count) << count << " strata";
-    }
-}
-
 TEST(Counters, ASolveCountsWhatItsGeometryImplies) {
     // Two parallel unit squares facing each other at distance 1, each meshed into k patches: every
     // patch of one faces every patch of the other and none of its own (k^2 facing pairs), nothing

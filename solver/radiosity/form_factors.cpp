@@ -143,8 +143,8 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
     // the patches see each other best (a desk under a lamp, the floor under the desk) takes its share
     // of the factor, not of the area; and the part of the other patch a point sees past an edge,
     // its share of what that point receives (weighing each point by its factor to the whole other
-    // patch instead read the lamp over a shadowed floor 0.7% dark). The weights are needed only where
-    // the rays disagree: each segment's kernel is kept until then.
+    // patch instead read the lamp over a shadowed floor 0.7% dark). The weights count only where the
+    // measuring rays disagree.
     thread_local std::vector<std::pair<double, bool>> ends;
     ends.clear();
     int visible = 0, rays = 0;
