@@ -549,13 +549,14 @@ TEST(FormFactorMatrix, AKnownBlockerGivesTheSameFactorsForFewerRays) {
     EXPECT_LT(double(cached), 0.2 * double(traced));
 }
 
-// A small patch 1 cm above a floor whose light rises linearly across it, B(x) = 1 + x, reads the
-// cosine-weighted mean of B over the floor below it: 1 + x0 at its foot x0 (the linear term averages
-// out about the foot; the floor's edges, 0.4 m away or more, hold under 0.1% of the kernel). Its foot
-// lies 3.5 cm off the centre of a 12.5 cm floor patch, whose mean 1 + x_c the patch's rays read
-// wherever they land without readLightWhereRaysLand: 2.4% low (ray_form_factors.h).
-TEST(RayFormFactors, ARayReadsTheLightWhereItLandsOnAPatch) {
-    const double x0 = 0.0975, z0 = 0.0625, h = 0.01, w = 0.002;
+// A small patch 1 cm above a floor whose light rises linearly across it, B(x) = 1 + x, at (x0, z0)
+// on an 8 x 8 mesh of a 1 m floor (0.125 m patches): the mean light its rays read, made to read the
+// light where they land (readLightWhereRaysLand) and as each patch's mean, wherever they land.
+struct LinearFloorReading {
+    double whereLanded, patchMean;
+};
+LinearFloorReading readLinearFloor(double x0, double z0) {
+    const double h = 0.01, w = 0.002;
     const Scene scene =
         test::sceneFromJson(cat(R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
       "objects": [
@@ -566,7 +567,7 @@ TEST(RayFormFactors, ARayReadsTheLightWhereItLandsOnAPatch) {
     MeshingOptions meshing;
     meshing.patchSize = 0.125;
     const PatchSet patches = meshScene(scene, meshing);
-    ASSERT_EQ(patches.size(), 65u) << "an 8 x 8 floor and the receiver";
+    EXPECT_EQ(patches.size(), 65u) << "an 8 x 8 floor and the receiver";
     const auto rays = buildRayScene(scene, patches);
     FormFactorSettings settings;
     settings.raysPerPatch = 16384;
@@ -585,13 +586,40 @@ TEST(RayFormFactors, ARayReadsTheLightWhereItLandsOnAPatch) {
         m.forEachInRow(receiver, [&](size_t j, float f) { light += f * B[j][0], share += f; });
         return light / share;
     };
-    const double constant = read(F);
+    LinearFloorReading out;
+    out.patchMean = read(F);
     const std::vector<double> sums = rowSums(F);
     readLightWhereRaysLand(F, patches, readings, B);
-    EXPECT_NEAR(read(F), 1 + x0, 0.002 * (1 + x0)) << "the patches' means read where each ray landed";
-    EXPECT_LT(constant, 1 + x0 - 0.01) << "the setting tells the two apart";
+    out.whereLanded = read(F);
     const std::vector<double> after = rowSums(F);
     for (size_t i = 0; i < sums.size(); ++i) EXPECT_NEAR(after[i], sums[i], 1e-5) << "light moves between columns";
+    return out;
+}
+
+// Over the floor's middle the receiver reads the cosine-weighted mean of B over the floor below it:
+// 1 + x0 at its foot x0 (the linear term averages out about the foot; the floor's edges, 0.4 m away
+// or more, hold under 0.1% of the kernel). Its foot lies 3.5 cm off the centre of a floor patch,
+// whose mean 1 + x_c the rays read without the reading: 2.4% low (ray_form_factors.h).
+TEST(RayFormFactors, ARayReadsTheLightWhereItLandsOnAPatch) {
+    const double x0 = 0.0975;
+    const LinearFloorReading r = readLinearFloor(x0, 0.0625);
+    EXPECT_NEAR(r.whereLanded, 1 + x0, 0.002 * (1 + x0)) << "the patches' means read where each ray landed";
+    EXPECT_LT(r.patchMean, 1 + x0 - 0.01) << "the setting tells the two apart";
+}
+
+// The same 2.75 cm inside the floor's dark edge, over a patch that has no neighbour on its darker
+// side (as the floor along a block's foot): the rays that land read the mean of B over the part of
+// the kernel that lies on the floor, 1 + x0 + E[t | t > -d] with the kernel's marginal across the
+// edge p(t) = h^2 / (2 (t^2 + h^2)^1.5): E = h^2 / (2 sqrt(d^2 + h^2)) / (1 - (1 - d / sqrt(d^2 +
+// h^2)) / 2). A limiter that kept every corner within the neighbours' range read the patch's mean,
+// 6% bright.
+TEST(RayFormFactors, ARayReadsTheLightWhereItLandsBesideAnEdge) {
+    const double h = 0.01, d = 0.0275, x0 = -0.5 + d;
+    const double s = std::sqrt(d * d + h * h);
+    const double expected = 1 + x0 + h * h / (2 * s) / (1 - (1 - d / s) / 2);
+    const LinearFloorReading r = readLinearFloor(x0, 0.0625);
+    EXPECT_NEAR(r.whereLanded, expected, 0.002 * expected) << "the edge patch's slope read up to the edge";
+    EXPECT_GT(r.patchMean, expected + 0.02) << "the setting tells the two apart";
 }
 
 // The noise each object's mean carries, as the report states it (relative_error_estimate: the

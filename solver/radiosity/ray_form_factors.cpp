@@ -578,8 +578,12 @@ void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const 
     if (!F.isSparse() || read.rows.size() != n || read.start.size() != n + 1 || B.size() != n) return;
     const Timer timer;
     const uint64_t before = F.entries();
-    // Barth and Jespersen's limiter: the slope, scaled so that the light it reconstructs at the
-    // patch's corners stays within the patch's and its neighbours' means.
+    // A limiter after Barth and Jespersen's: the slope, scaled so that the light it reconstructs at
+    // the patch's corners differs from the patch's mean by no more than its farthest neighbour's mean
+    // does (and stays positive). Their own bound, the neighbours' range, clipped the slopes of the
+    // patches along the short block's foot, whose darker side has no neighbour, and the block's
+    // front face read the floor there brighter than it is: +0.67% over 8 seeds (+0.33% with this
+    // bound, +0.32% with none).
     std::vector<float> limit(n, 0.0f);
     std::vector<char> steep(n, 0);  // kSteep
     parallelFor(
@@ -595,6 +599,9 @@ void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const 
                     gu += read.qu[a] * (bk - bj), gv += read.qv[a] * (bk - bj);
                     low = std::min(low, bk), high = std::max(high, bk);
                 }
+                // As far from the mean as the farthest neighbour, either way (not below zero).
+                const double reach = std::max(high - bj, bj - low);
+                low = std::max(0.0, bj - reach), high = bj + reach;
                 const Vec3 c = read.uncoveredCentroid(patches, j);
                 double phi = 1;
                 for (int k = 0; k < patches.cornerCount[j]; ++k) {

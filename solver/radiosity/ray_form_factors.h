@@ -74,10 +74,11 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
 // Given `readings`, castFormFactors notes each ray that lands within 4 radii of the patch it meets,
 // and where: readLightWhereRaysLand then makes it read the light at that point, the patch's mean
 // plus its slope (least squares over its neighbours' means, in its tangent plane) times the offset,
-// the slope limited by the solved B so that no corner of the patch reads outside its neighbours'
-// range (Barth and Jespersen), as across a shadow edge. A landing point's weight moves between the
-// patch's column and its neighbours'; each row's sum is unchanged, so a closed scene still conserves
-// light exactly and a uniform furnace stays uniform, and the slope of uniform light is zero.
+// the slope limited by the solved B so that no corner of the patch reads farther from its mean than
+// its farthest neighbour's mean lies (after Barth and Jespersen), as across a shadow edge. A landing
+// point's weight moves between the patch's column and its neighbours'; each row's sum is unchanged,
+// so a closed scene still conserves light exactly and a uniform furnace stays uniform, and the slope
+// of uniform light is zero.
 struct HitReadings {
     // Near hits of one row on one patch: the sum of their weights in the row, and of their weights
     // times their landing points' offsets from the patch's centroid in its tangent frame (metres).
