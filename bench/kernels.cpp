@@ -13,6 +13,7 @@
 #include "render/final_gather.h"
 #include "render/photon_map.h"
 #include "solver/radiosity/form_factor_kernel.h"
+#include "solver/radiosity/ray_form_factors.h"
 #include "solver/radiosity/system.h"
 #include "solver/solve.h"
 #include "solver/tracer.h"
@@ -81,6 +82,30 @@ void BM_VisibilityRay(benchmark::State& state) {
     state.SetItemsProcessed(int64_t(state.iterations()));
 }
 BENCHMARK(BM_VisibilityRay);
+
+// The form-factor stage's ray casting on the Cornell box's default mesh (3,204 patches), 144 rays a
+// patch, each ray's landing point noted for the reading: rays per second, to set against
+// BM_VisibilityRay's and the bench's Embree-alone rate. Argument 1: with the lamp's exact columns
+// (the default), 0: rays alone.
+void BM_CastFormFactors(benchmark::State& state) {
+    static const Scene& scene = sceneNamed("cornell-box.json");
+    static const PatchSet patches = meshScene(scene, {});
+    static const auto rays = buildRayScene(scene, patches);
+    static const RadiositySystem system = buildSystem(scene, patches);
+    const std::vector<char> analytic = state.range(0) ? smallSources(system) : std::vector<char>{};
+    std::vector<char> emitting(patches.size(), 0);
+    for (size_t i = 0; i < patches.size(); ++i) emitting[i] = system.emission[i].maxCoeff() > 0;
+    FormFactorSettings settings;
+    uint64_t cast = 0;
+    for (auto _ : state) {
+        HitReadings readings;
+        const FormFactorMatrix F = castFormFactors(patches, *rays, settings, analytic, emitting, &readings);
+        benchmark::DoNotOptimize(F.entries());
+        cast += uint64_t(patches.size()) * uint64_t(settings.raysPerPatch);
+    }
+    state.counters["rays/s"] = benchmark::Counter(double(cast), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_CastFormFactors)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // A random matrix of n x n (rows summing to 0.9) and its system, for the sweeps.
 struct Sweep {

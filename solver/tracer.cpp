@@ -100,6 +100,7 @@ PatchPointSampler::PatchPointSampler(const PatchSet& patches, size_t i) {
     // holding a binomial number of them: the Cornell box's ray origins were stratified within
     // each triangle, not over the patch).
     split_ = first / (first + second);
+    inverse_[0] = split_ > 0 ? 1 / split_ : 0, inverse_[1] = split_ < 1 ? 1 / (1 - split_) : 0;
     d_[0] = c[3];
     a_[1] = c[2], b_[1] = c[3], d_[1] = c[1];
 }
@@ -108,9 +109,9 @@ Vec3 PatchPointSampler::operator()(double u1, double u2) const {
     int t = 0;
     if (u1 >= split_) {
         t = 1;
-        u1 = split_ < 1 ? (u1 - split_) / (1 - split_) : 0;
+        u1 = (u1 - split_) * inverse_[1];
     } else {
-        u1 = u1 / split_;
+        u1 = u1 * inverse_[0];
     }
     const double r = std::sqrt(u1);
     return (1 - r) * a_[t] + r * (1 - u2) * b_[t] + r * u2 * d_[t];

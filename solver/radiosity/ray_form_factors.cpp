@@ -317,6 +317,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 int wholly = 0;  // the rays cast before the patch was found wholly inside a solid
                 const bool mayBeCovered = !(i < emitting.size() && emitting[i]);
                 shuffledStrata(order, count, rng);
+                const double inverseSide = 1.0 / side;
                 const PatchPointSampler onPatch(patches, i);
                 const CosineSampler around(n0);
                 const Vec3 lifted = lift * n0;
@@ -324,8 +325,10 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     // Origins in one stratum of the patch, directions in another (a random
                     // permutation of the strata), both jittered.
                     const int a = k, b = order[size_t(k)];
-                    const double u1 = ((a % side) + rng.uniform()) / side, u2 = ((a / side) + rng.uniform()) / side;
-                    const double d1 = ((b % side) + rng.uniform()) / side, d2 = ((b / side) + rng.uniform()) / side;
+                    const double u1 = ((a % side) + rng.uniform()) * inverseSide;
+                    const double u2 = ((a / side) + rng.uniform()) * inverseSide;
+                    const double d1 = ((b % side) + rng.uniform()) * inverseSide;
+                    const double d2 = ((b / side) + rng.uniform()) * inverseSide;
                     rng.uniform();  // u3 of samplePatchPoint, unused: kept so the stream stays as it was
                     const Vec3 at = onPatch(u1, u2);
                     const Vec3 origin = at + 1e-3 * (patches.centroid[i] - at) + lifted;  // rayOrigin
