@@ -193,7 +193,7 @@ public:
 
 private:
     Vec3 a_[2], b_[2], d_[2];
-    double split_ = 1;  // u1 below it: the first triangle
+    double split_ = 1;            // u1 below it: the first triangle
     double inverse_[2] = {1, 0};  // 1 / split_ and 1 / (1 - split_), or 0 where that is 0
 };
 
