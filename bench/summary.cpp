@@ -231,6 +231,27 @@ std::string meshesMarkdown(const std::vector<Row>& rows) {
     return md;
 }
 
+StageRatio formFactorRatio(const BenchResult& r) {
+    const EmbreeLimit& e = r.embree;
+    struct Run {
+        double ratio, cast, visibility, seconds;
+    };
+    std::vector<Run> runs;
+    for (const ObjectRun& o : r.objectRuns)
+        if (o.formFactorSeconds > 0) runs.push_back({0, o.castRays, o.visibilityRays, o.formFactorSeconds});
+    if (runs.empty() && r.formFactorSeconds > 0)
+        runs.push_back({0, r.formFactorCastRays, r.formFactorRays, r.formFactorSeconds});
+    StageRatio out;
+    if (runs.empty() || !(e.intersect1 > 0) || !(e.occluded1 > 0)) return out;
+    for (Run& k : runs) k.ratio = (k.cast / e.intersect1 + k.visibility / e.occluded1) / k.seconds;
+    std::sort(runs.begin(), runs.end(), [](const Run& a, const Run& b) { return a.ratio < b.ratio; });
+    const Run& m = runs[runs.size() / 2];
+    out.median = m.ratio, out.low = runs.front().ratio, out.high = runs.back().ratio;
+    out.castRays = m.cast, out.visibilityRays = m.visibility, out.seconds = m.seconds;
+    out.runs = runs.size();
+    return out;
+}
+
 std::string summaryMarkdown(const BenchResult& r) {
     std::string md =
         cat("# Bench: ", r.scene, "\n\nMachine: ", r.machine, ". Images ", r.width, "x", r.height,
@@ -317,15 +338,14 @@ std::string summaryMarkdown(const BenchResult& r) {
         cat("\n## Close to the limit\n\nEmbree alone on the same patches and ", e.threads, " threads (", e.rays,
             " rays each, made before the clock starts); memory on a ", b.n, "^2 float matrix (",
             fixed(b.matrixBytes / (1 << 20), 0), " MiB).\n\n| stage | measured | limit | ratio |\n|---|---|---|---|\n");
-    if (r.formFactorSeconds > 0) {
-        // The stage's rays at Embree's own rates: cast rays at the nearest-hit rate, visibility rays
-        // (the analytic lamp columns, or the whole analytic matrix) at the occlusion rate.
-        const double alone = r.formFactorCastRays / e.intersect1 + r.formFactorRays / e.occluded1;
-        const double rays = r.formFactorCastRays + r.formFactorRays;
-        md += cat("| form factors (rays / stage seconds: ", fixed(r.formFactorCastRays / 1e6, 2), " M cast, ",
-                  fixed(r.formFactorRays / 1e6, 2), " M visibility) | ", fixed(rays / r.formFactorSeconds / 1e6, 2),
-                  " M rays/s | Embree alone: ", fixed(rays / alone / 1e6, 2), " M rays/s | ",
-                  percent(alone / r.formFactorSeconds), " |\n");
+    if (const StageRatio f = formFactorRatio(r); f.runs > 0) {
+        const double rays = f.castRays + f.visibilityRays;
+        md += cat("| form factors (rays / stage seconds: ", fixed(f.castRays / 1e6, 2), " M cast, ",
+                  fixed(f.visibilityRays / 1e6, 2), " M visibility",
+                  f.runs > 1 ? cat("; median of ", f.runs, " default solves, ", percent(f.low), "-", percent(f.high))
+                             : std::string(),
+                  ") | ", fixed(rays / f.seconds / 1e6, 2), " M rays/s | Embree alone: ",
+                  fixed(rays / f.seconds / f.median / 1e6, 2), " M rays/s | ", percent(f.median), " |\n");
     }
     if (r.gatherSeconds > 0)
         md += cat("| final gather (rays / render seconds) | ", fixed(r.gatherRays / r.gatherSeconds / 1e6, 2),
@@ -387,12 +407,15 @@ std::string benchJson(const BenchResult& r) {
                       {"jacobi_gb_per_s", b.jacobiGBs},
                       {"gauss_seidel_gb_per_s", b.gaussSeidelGBs},
                       {"jacobi_over_read", b.jacobiGBs / b.readGBs}};
-    if (r.formFactorSeconds > 0)
-        j["form_factors"] = {{"rays", r.formFactorRays},
-                             {"cast_rays", r.formFactorCastRays},
-                             {"seconds", r.formFactorSeconds},
-                             {"rays_per_s", (r.formFactorRays + r.formFactorCastRays) / r.formFactorSeconds},
-                             {"over_embree", r.formFactorRays / r.formFactorSeconds / r.embree.occluded1}};
+    if (const StageRatio f = formFactorRatio(r); f.runs > 0)
+        j["form_factors"] = {{"rays", f.visibilityRays},
+                             {"cast_rays", f.castRays},
+                             {"seconds", f.seconds},
+                             {"rays_per_s", (f.visibilityRays + f.castRays) / f.seconds},
+                             {"over_embree", f.median},
+                             {"over_embree_low", f.low},
+                             {"over_embree_high", f.high},
+                             {"solves", f.runs}};
     if (r.gatherSeconds > 0)
         j["final_gather"] = {{"rays", r.gatherRays},
                              {"seconds", r.gatherSeconds},

@@ -342,6 +342,9 @@ void Bench::measureObjects(BenchResult& result) {
         ObjectRun run;
         run.seed = uint64_t(seed);
         run.seconds = r.secondsMeshing + r.secondsFormFactors + r.secondsSpecular + r.secondsSolve + r.secondsVertices;
+        run.formFactorSeconds = r.secondsFormFactors;
+        run.castRays = double(r.counters.at("form_factors.cast_rays"));
+        run.visibilityRays = double(r.counters.at("form_factors.visibility_rays"));
         const std::vector<Rgb> mean = objectRadiosity(r, scene_.objects.size());
         for (size_t k = 0; k < mean.size(); ++k) {
             if (reference[k].samples == 0 || !(reference[k].radiosity.sum() > 0)) continue;

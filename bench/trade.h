@@ -81,6 +81,8 @@ struct ObjectRun {
     std::string worst;       // the object furthest from the reference
     double worstError = 0;   // |mean / reference - 1| over the channels' sum
     double worstStated = 0;  // that object's relative_error_estimate
+    // Its form-factor stage: seconds, cast (nearest-hit) rays and visibility (occlusion) rays.
+    double formFactorSeconds = 0, castRays = 0, visibilityRays = 0;
 };
 
 struct BenchResult {
@@ -101,6 +103,16 @@ struct BenchResult {
 };
 
 BenchResult runBench(const BenchOptions& options);
+
+// The form-factor stage's rays per second over the rate Embree alone casts them at (cast rays at the
+// nearest-hit rate, visibility rays at the occlusion rate): the median over the default solves of
+// the per-object runs (warm: the first solve of a process also pays for first touches), else the
+// final gather's default solve. `runs` 0 when neither was measured.
+struct StageRatio {
+    double median = 0, low = 0, high = 0, castRays = 0, visibilityRays = 0, seconds = 0;
+    size_t runs = 0;
+};
+StageRatio formFactorRatio(const BenchResult& result);
 
 // A setting in a few words ("1000 patches, 8 spp, 16 gather rays"): what differs from the defaults.
 std::string settingText(const Setting& s);
