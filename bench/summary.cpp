@@ -344,8 +344,9 @@ std::string summaryMarkdown(const BenchResult& r) {
                   fixed(f.visibilityRays / 1e6, 2), " M visibility",
                   f.runs > 1 ? cat("; median of ", f.runs, " default solves, ", percent(f.low), "-", percent(f.high))
                              : std::string(),
-                  ") | ", fixed(rays / f.seconds / 1e6, 2), " M rays/s | Embree alone: ",
-                  fixed(rays / f.seconds / f.median / 1e6, 2), " M rays/s | ", percent(f.median), " |\n");
+                  ") | ", fixed(rays / f.seconds / 1e6, 2),
+                  " M rays/s | Embree alone: ", fixed(rays / f.seconds / f.median / 1e6, 2), " M rays/s | ",
+                  percent(f.median), " |\n");
     }
     if (r.gatherSeconds > 0)
         md += cat("| final gather (rays / render seconds) | ", fixed(r.gatherRays / r.gatherSeconds / 1e6, 2),
@@ -408,14 +409,10 @@ std::string benchJson(const BenchResult& r) {
                       {"gauss_seidel_gb_per_s", b.gaussSeidelGBs},
                       {"jacobi_over_read", b.jacobiGBs / b.readGBs}};
     if (const StageRatio f = formFactorRatio(r); f.runs > 0)
-        j["form_factors"] = {{"rays", f.visibilityRays},
-                             {"cast_rays", f.castRays},
-                             {"seconds", f.seconds},
-                             {"rays_per_s", (f.visibilityRays + f.castRays) / f.seconds},
-                             {"over_embree", f.median},
-                             {"over_embree_low", f.low},
-                             {"over_embree_high", f.high},
-                             {"solves", f.runs}};
+        j["form_factors"] = {{"rays", f.visibilityRays},   {"cast_rays", f.castRays},
+                             {"seconds", f.seconds},       {"rays_per_s", (f.visibilityRays + f.castRays) / f.seconds},
+                             {"over_embree", f.median},    {"over_embree_low", f.low},
+                             {"over_embree_high", f.high}, {"solves", f.runs}};
     if (r.gatherSeconds > 0)
         j["final_gather"] = {{"rays", r.gatherRays},
                              {"seconds", r.gatherSeconds},
