@@ -470,7 +470,7 @@ std::vector<SolveSetting> solveSettings(SolveOptions& o) {
          kHuge, true, &o.solverSettings.tolerance},
         {"max_iterations", "--max-iterations", "Iteration cap", 1, 1e8, true, &o.solverSettings.maxIterations},
         {"visibility_rays", "--visibility-rays",
-         "Visibility rays per patch pair that decide how to measure it; as many again measure it (4x as many where a "
+         "Visibility rays per patch pair that decide how to measure it; as many again measure it (16x as many where a "
          "shadow edge crosses the pair)",
          1, 4096, true, &o.formFactors.visibilityRays},
         {"ff_tolerance", "--ff-tolerance", "Target relative error of each unoccluded form factor", 1e-12, 1, true,

@@ -20,7 +20,7 @@ namespace penumbra {
 
 struct FormFactorSettings {
     CubatureSettings cubature;
-    int visibilityRays = 4;  // per pair to decide, as many again to measure (4x where partly visible)
+    int visibilityRays = 4;  // per pair to decide, as many again to measure (16x where partly visible)
     // auto (chooseFormFactors), rays (ray_form_factors.h) or analytic (cubature and visibility rays).
     std::string method = "auto";
     int raysPerPatch = 144;  // --form-factors rays: rays cast from each patch (then more where objectNoise asks)
@@ -134,7 +134,7 @@ struct PlaneSides {
 PlaneSides planeSides(const PatchSet& p, size_t a, size_t b);
 
 // Fraction of the light between patches a and b that nothing blocks: `base` stratified segments
-// decide how to measure, then `base` more measure it, or four times as many when the first disagree
+// decide how to measure, then `base` more measure it, or 16 times as many when the first disagree
 // (a shadow boundary crosses the pair); each measuring segment is weighted by the kernel between
 // its ends, and the strata of a and b are paired in a random order. The mean is the share of the
 // form factor that gets through, however narrow the opening. The endpoints are lifted off the faces
