@@ -47,7 +47,7 @@ struct SolveCli {
     SolveOptions options;
     double maxMemoryGiB = 0;
     int viewSpp = 4;
-    CLI::Option *patches = nullptr, *perObject = nullptr;
+    CLI::Option *patches = nullptr, *perObject = nullptr, *ffRays = nullptr;
 
     // The options as the solve takes them, with what the command line leaves to depend on others.
     SolveOptions resolved(const CommonOptions& common) const {
@@ -59,6 +59,8 @@ struct SolveCli {
             o.meshing.targetPatches = std::min(kRefineStartPatches, o.refine.maxPatches);
         // An explicit --patches is the user's number; the default has a floor per object.
         if ((patches->count() > 0 || o.refine.tolerance > 0) && perObject->count() == 0) o.meshing.patchesPerObject = 0;
+        // An explicit --ff-rays holds in a scene of many objects too.
+        if (ffRays->count() > 0) o.manyObjectsRays = 0;
         return o;
     }
     static constexpr int kRefineStartPatches = 400;
@@ -96,6 +98,7 @@ void addSolveOptions(CLI::App* cmd, SolveCli& s) {
         if (e.showDefault) option->capture_default_str();
         if (std::string(e.key) == "patches") s.patches = option;
         if (std::string(e.key) == "patches_per_object") s.perObject = option;
+        if (std::string(e.key) == "ff_rays") s.ffRays = option;
     }
     std::string solverHelp;
     for (const SolverInfo& e : solverRegistry())

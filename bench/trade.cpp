@@ -377,7 +377,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
     o.formFactors.visibilityRays = s.visibilityRays;
     o.formFactors.cubature.tolerance = s.ffTolerance;
     if (s.ffRays != 0) o.formFactors.method = s.ffRays > 0 ? "rays" : "analytic";
-    if (s.ffRays > 0) o.formFactors.raysPerPatch = s.ffRays;
+    if (s.ffRays > 0) o.formFactors.raysPerPatch = s.ffRays, o.manyObjectsRays = 0;
     o.formFactors.seed = options_.seed;
     o.specular.raysPerPatch = s.specularRays;
     o.solverSettings.tolerance = tolerances.front();

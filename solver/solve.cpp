@@ -383,6 +383,16 @@ void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveRes
     r.corners = interpolateCorners(r.patches, r.solution.display);
 }
 
+// Whether the per-object floor (--patches-per-object) sets the default patch count: a scene of many
+// objects, whose count is the small objects' floor, not a budget for the large surfaces. Grading then
+// adds its patches to the uniform mesh instead of coarsening it to keep the count: the building's
+// large surfaces had gone from 0.37 m to 0.74 m patches, and 140-141 of its 147 large surfaces were
+// within 1% of the path-traced reference (seeds 1-3); kept at 0.37 m with 64 rays a patch, 145-146,
+// in 6.1-7.0 s of stages instead of 3.9-4.7 (with 144 rays 146-147 in 9.4-9.9 s).
+bool manyObjects(const Scene& scene, const SolveOptions& options) {
+    return !(options.meshing.patchSize > 0) && patchTarget(scene, options.meshing) > options.meshing.targetPatches;
+}
+
 // Grades r's uniform mesh towards contacts (contact_grading.h), keeping the ray scene it builds on
 // the way. --patches N asks for about N patches in all: while the graded mesh overshoots N by more
 // than a tenth, the uniform mesh under it is asked for N / (graded / asked) patches instead (at most
@@ -403,7 +413,8 @@ void gradeMesh(const Scene& scene, const SolveOptions& options, SolveResult& r) 
     // A uniform mesh of fewer than two patches per object (the building: 13,346 for 9,553 quads at
     // --patches 3000) is about as coarse as its objects allow: asking it for fewer coarsens only its
     // large surfaces (its floors went to one 5 m^2 patch each), so it keeps its size and grows.
-    const bool retry = !(options.meshing.patchSize > 0) && double(uniform) >= 2.0 * double(scene.objects.size());
+    const bool retry = !(options.meshing.patchSize > 0) && double(uniform) >= 2.0 * double(scene.objects.size()) &&
+                       !manyObjects(scene, options);
     for (int attempt = 0; attempt < 2 && retry && got > 1.1 * target; ++attempt) {
         MeshingOptions again = options.meshing;
         asked *= target / got;
@@ -475,8 +486,10 @@ std::vector<SolveSetting> solveSettings(SolveOptions& o) {
          1, 4096, true, &o.formFactors.visibilityRays},
         {"ff_tolerance", "--ff-tolerance", "Target relative error of each unoccluded form factor", 1e-12, 1, true,
          &o.formFactors.cubature.tolerance},
-        {"ff_rays", "--ff-rays", "--form-factors rays: rays cast from each patch", 1, 1 << 24, true,
-         &o.formFactors.raysPerPatch},
+        {"ff_rays", "--ff-rays",
+         "--form-factors rays: rays cast from each patch (unless given: 64 where the per-object floor sets the "
+         "mesh, a scene of many objects)",
+         1, 1 << 24, true, &o.formFactors.raysPerPatch},
         {"ff_noise", "--ff-noise",
          "--form-factors rays: cast more rays from the patches of each object whose mean radiosity's estimated "
          "standard error is above this share of it (up to 64x --ff-rays, at most as many rays again in all; 1: off)",
@@ -515,9 +528,17 @@ std::vector<std::string> allSolverNames() {
 
 namespace {
 
-SolveResult solveUncounted(const Scene& scene, const SolveOptions& options, const StepObserver& observer) {
+SolveResult solveUncounted(const Scene& scene, const SolveOptions& given, const StepObserver& observer) {
     SolveResult r;
-    r.options = options;
+    r.options = given;
+    if (given.manyObjectsRays > 0 && manyObjects(scene, given) &&
+        r.options.formFactors.raysPerPatch != given.manyObjectsRays) {
+        r.options.formFactors.raysPerPatch = given.manyObjectsRays;
+        logInfo("form factors: ", given.manyObjectsRays, " rays a patch (--ff-rays), because the floor of ",
+                given.meshing.patchesPerObject, " patches per object sets the mesh of these ", scene.objects.size(),
+                " objects: finer patches with fewer rays each");
+    }
+    const SolveOptions& options = r.options;
     const auto names = allSolverNames();
     if (std::find(names.begin(), names.end(), options.solver) == names.end()) {
         std::string known;

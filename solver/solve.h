@@ -35,6 +35,10 @@ struct SolveOptions {
     // mean around it with the small sources' direct light at the vertex) or average (the mean around it).
     std::string vertexRadiosity = "direct";
     double maxMemoryBytes = 0;  // 0: what the machine has available
+    // Rays per patch where the per-object floor sets the default mesh (a scene of many objects, the
+    // building's desks, shelves and books): its large surfaces keep the target size, finer and with
+    // fewer rays each (solve.cpp, manyObjects); 0, or an --ff-rays given: formFactors.raysPerPatch.
+    int manyObjectsRays = 64;
 };
 
 // One round of adaptive subdivision: the mesh it solved and what it cost so far.

@@ -133,6 +133,40 @@ TEST(Meshing, ManySmallObjectsLeaveTheLargeSurfacesTheirShare) {
     EXPECT_EQ(patchTarget(scene, o), 3000);
 }
 
+// The same floor with the tiles 1 cm above it, solved with the defaults: contact grading splits the
+// floor under the tiles, and the many-object default keeps the floor's uniform mesh at its share of
+// the 6,003 asked instead of coarsening it until the graded total is back near 6,003 (the building's
+// large surfaces went from 0.37 m to 0.74 m that way), and casts 64 rays a patch; an explicit ray
+// count (manyObjectsRays 0, as --ff-rays given) holds.
+TEST(Meshing, ManyObjectsGradeOnTopOfTheLargeSurfacesShare) {
+    std::string objects = R"({"name": "floor", "type": "quad", "material": "m",
+        "vertices": [[0, 0, 0], [0, 0, 10], [10, 0, 10], [10, 0, 0]]})";
+    for (int k = 0; k < 2000; ++k) {
+        const double x = 0.1 + 0.2 * (k % 45), z = 0.1 + 0.2 * (k / 45);
+        objects += cat(R"(, {"name": "tile)", k, R"(", "type": "quad", "material": "m", "vertices": [[)", x, ", 0.01, ",
+                       z, "], [", x, ", 0.01, ", z + 0.05, "], [", x + 0.05, ", 0.01, ", z + 0.05, "], [", x + 0.05,
+                       ", 0.01, ", z, "]]}");
+    }
+    const Scene scene = test::sceneFromJson(R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
+        "objects": [)" + objects + "]}");
+    SolveOptions o;
+    o.solver = "gauss-seidel";
+    o.formFactors.method = "rays";
+    o.vertexRadiosity = "average";
+    const SolveResult r = solveScene(scene, o);
+    EXPECT_EQ(r.options.formFactors.raysPerPatch, 64);
+    EXPECT_GT(double(r.patches.size()), 1.1 * 6003) << "grading added patches (which the count had taken back)";
+    const double area = 100 + 2000 * 0.0025, floorShare = 100 / area;
+    double floorArea = 0, floorPatches = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i)
+        if (r.patches.object[i] == 0) floorArea += r.patches.area[i], ++floorPatches;
+    EXPECT_NEAR(floorArea, 100, 1e-6);
+    EXPECT_GE(floorPatches, 0.9 * floorShare * 6003) << "the floor's uniform share, and its graded patches on top";
+    o.manyObjectsRays = 0;
+    o.grading.levels = 0;
+    EXPECT_EQ(solveScene(scene, o).options.formFactors.raysPerPatch, 144);
+}
+
 TEST(Meshing, MirroredSphereStillFacesOutward) {
     // scale -1 on x mirrors the sphere: its facets must still face away from its centre.
     const Scene scene = test::sceneFromJson(R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
