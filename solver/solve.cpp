@@ -388,7 +388,7 @@ void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveRes
 // adds its patches to the uniform mesh instead of coarsening it to keep the count: the building's
 // large surfaces had gone from 0.37 m to 0.74 m patches, and 140-141 of its 147 large surfaces were
 // within 1% of the path-traced reference (seeds 1-3); kept at 0.37 m with 64 rays a patch, 145-146,
-// in 6.1-7.0 s of stages instead of 3.9-4.7 (with 144 rays 146-147 in 9.4-9.9 s).
+// in 6.0-7.0 s of stages instead of 3.9-4.7 (with 144 rays 146-147 in 9.7-9.9 s).
 bool manyObjects(const Scene& scene, const SolveOptions& options) {
     return !(options.meshing.patchSize > 0) && patchTarget(scene, options.meshing) > options.meshing.targetPatches;
 }
