@@ -231,6 +231,14 @@ std::string meshesMarkdown(const std::vector<Row>& rows) {
     return md;
 }
 
+namespace {
+// Seconds Embree alone would take for a stage's rays: cast rays at its nearest-hit rate, visibility
+// rays at its occlusion rate.
+double embreeAloneSeconds(double castRays, double visibilityRays, const EmbreeLimit& e) {
+    return castRays / e.intersect1 + visibilityRays / e.occluded1;
+}
+}  // namespace
+
 StageRatio formFactorRatio(const BenchResult& r) {
     const EmbreeLimit& e = r.embree;
     struct Run {
@@ -243,7 +251,7 @@ StageRatio formFactorRatio(const BenchResult& r) {
         runs.push_back({0, r.formFactorCastRays, r.formFactorRays, r.formFactorSeconds});
     StageRatio out;
     if (runs.empty() || !(e.intersect1 > 0) || !(e.occluded1 > 0)) return out;
-    for (Run& k : runs) k.ratio = (k.cast / e.intersect1 + k.visibility / e.occluded1) / k.seconds;
+    for (Run& k : runs) k.ratio = embreeAloneSeconds(k.cast, k.visibility, e) / k.seconds;
     std::sort(runs.begin(), runs.end(), [](const Run& a, const Run& b) { return a.ratio < b.ratio; });
     const Run& m = runs[runs.size() / 2];
     out.median = m.ratio, out.low = runs.front().ratio, out.high = runs.back().ratio;
@@ -349,7 +357,7 @@ std::string summaryMarkdown(const BenchResult& r) {
                   percent(f.median), " |\n");
         if (f.runs > 1 && r.formFactorSeconds > 0) {
             // The process's first solve also pays for first touches of its memory (page faults).
-            const double alone = r.formFactorCastRays / e.intersect1 + r.formFactorRays / e.occluded1;
+            const double alone = embreeAloneSeconds(r.formFactorCastRays, r.formFactorRays, e);
             md += cat("| form factors, the process's first solve (cold) | ",
                       fixed((r.formFactorCastRays + r.formFactorRays) / r.formFactorSeconds / 1e6, 2), " M rays/s | | ",
                       percent(alone / r.formFactorSeconds), " |\n");

@@ -109,20 +109,26 @@ TEST(Meshing, PatchCountFollowsTheTarget) {
     }
 }
 
-TEST(Meshing, ManySmallObjectsLeaveTheLargeSurfacesTheirShare) {
-    // A 10 x 10 m floor under 2,000 tiles of 5 x 5 cm (a library's books): at 3,000 patches in all the
-    // tiles would take two thirds and the floor be meshed at 18 cm; the default's floor of three per
-    // object asks 6,000, and the floor's share of the area gets its share of them.
+// A 10 x 10 m floor (object 0) under 2,000 tiles of 5 x 5 cm at `height` above it (a library's books).
+Scene floorUnderTiles(double height) {
     std::string objects = R"({"name": "floor", "type": "quad", "material": "m",
         "vertices": [[0, 0, 0], [0, 0, 10], [10, 0, 10], [10, 0, 0]]})";
+    const std::string y = cat(", ", height, ", ");
     for (int k = 0; k < 2000; ++k) {
         const double x = 0.1 + 0.2 * (k % 45), z = 0.1 + 0.2 * (k / 45);
-        objects += cat(R"(, {"name": "tile)", k, R"(", "type": "quad", "material": "m", "vertices": [[)", x, ", 0.5, ",
-                       z, "], [", x, ", 0.5, ", z + 0.05, "], [", x + 0.05, ", 0.5, ", z + 0.05, "], [", x + 0.05,
-                       ", 0.5, ", z, "]]}");
+        objects += cat(R"(, {"name": "tile)", k, R"(", "type": "quad", "material": "m", "vertices": [[)", x, y, z,
+                       "], [", x, y, z + 0.05, "], [", x + 0.05, y, z + 0.05, "], [", x + 0.05, y, z, "]]}");
     }
-    const Scene scene = test::sceneFromJson(R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
-        "objects": [)" + objects + "]}");
+    return test::sceneFromJson(R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
+        "objects": [)" + objects +
+                               "]}");
+}
+
+TEST(Meshing, ManySmallObjectsLeaveTheLargeSurfacesTheirShare) {
+    // The floor under tiles 0.5 m up: at 3,000 patches in all the tiles would take two thirds and the
+    // floor be meshed at 18 cm; the default's floor of three per object asks 6,000, and the floor's
+    // share of the area gets its share of them.
+    const Scene scene = floorUnderTiles(0.5);
     MeshingOptions o;
     EXPECT_EQ(patchTarget(scene, o), 6003);
     const PatchSet p = meshScene(scene, o);
@@ -139,16 +145,7 @@ TEST(Meshing, ManySmallObjectsLeaveTheLargeSurfacesTheirShare) {
 // large surfaces went from 0.37 m to 0.74 m that way), and casts 64 rays a patch; an explicit ray
 // count (manyObjectsRays 0, as --ff-rays given) holds.
 TEST(Meshing, ManyObjectsGradeOnTopOfTheLargeSurfacesShare) {
-    std::string objects = R"({"name": "floor", "type": "quad", "material": "m",
-        "vertices": [[0, 0, 0], [0, 0, 10], [10, 0, 10], [10, 0, 0]]})";
-    for (int k = 0; k < 2000; ++k) {
-        const double x = 0.1 + 0.2 * (k % 45), z = 0.1 + 0.2 * (k / 45);
-        objects += cat(R"(, {"name": "tile)", k, R"(", "type": "quad", "material": "m", "vertices": [[)", x, ", 0.01, ",
-                       z, "], [", x, ", 0.01, ", z + 0.05, "], [", x + 0.05, ", 0.01, ", z + 0.05, "], [", x + 0.05,
-                       ", 0.01, ", z, "]]}");
-    }
-    const Scene scene = test::sceneFromJson(R"({"materials": {"m": {"type": "diffuse", "reflectance": 0.5}},
-        "objects": [)" + objects + "]}");
+    const Scene scene = floorUnderTiles(0.01);
     SolveOptions o;
     o.solver = "gauss-seidel";
     o.formFactors.method = "rays";
