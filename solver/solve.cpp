@@ -463,7 +463,7 @@ std::vector<SolveSetting> solveSettings(SolveOptions& o) {
     constexpr double kPositive = 0, kHuge = std::numeric_limits<double>::infinity();
     return {
         {"patches", "--patches",
-         "About this many patches in all; unless given, at least three per object (a scene of many small objects "
+         "About this many patches in all; unless given, at least four per object (a scene of many small objects "
          "leaves its large surfaces their share; with --refine: to start from, default 400)",
          1, 1e8, true, &o.meshing.targetPatches},
         {"patches_per_object", "--patches-per-object",

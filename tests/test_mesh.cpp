@@ -126,22 +126,23 @@ Scene floorUnderTiles(double height) {
 
 TEST(Meshing, ManySmallObjectsLeaveTheLargeSurfacesTheirShare) {
     // The floor under tiles 0.5 m up: at 3,000 patches in all the tiles would take two thirds and the
-    // floor be meshed at 18 cm; the default's floor of three per object asks 6,000, and the floor's
+    // floor be meshed at 18 cm; the default's floor of four per object asks 8,004, and the floor's
     // share of the area gets its share of them.
     const Scene scene = floorUnderTiles(0.5);
     MeshingOptions o;
-    EXPECT_EQ(patchTarget(scene, o), 6003);
+    const double asked = 4 * 2001;
+    EXPECT_EQ(patchTarget(scene, o), int(asked));
     const PatchSet p = meshScene(scene, o);
     const double area = 100 + 2000 * 0.0025, floorShare = 100 / area;
     const auto floorPatches = double(std::count(p.object.begin(), p.object.end(), 0));
-    EXPECT_NEAR(floorPatches, floorShare * 6003, 0.1 * floorShare * 6003);
+    EXPECT_NEAR(floorPatches, floorShare * asked, 0.1 * floorShare * asked);
     o.patchesPerObject = 0;
     EXPECT_EQ(patchTarget(scene, o), 3000);
 }
 
 // The same floor with the tiles 1 cm above it, solved with the defaults: contact grading splits the
 // floor under the tiles, and the many-object default keeps the floor's uniform mesh at its share of
-// the 6,003 asked instead of coarsening it until the graded total is back near 6,003 (the building's
+// the 8,004 asked instead of coarsening it until the graded total is back near 8,004 (the building's
 // large surfaces went from 0.37 m to 0.74 m that way), and casts 64 rays a patch; an explicit ray
 // count (manyObjectsRays 0, as --ff-rays given) holds.
 TEST(Meshing, ManyObjectsGradeOnTopOfTheLargeSurfacesShare) {
@@ -152,13 +153,14 @@ TEST(Meshing, ManyObjectsGradeOnTopOfTheLargeSurfacesShare) {
     o.vertexRadiosity = "average";
     const SolveResult r = solveScene(scene, o);
     EXPECT_EQ(r.options.formFactors.raysPerPatch, 64);
-    EXPECT_GT(double(r.patches.size()), 1.1 * 6003) << "grading added patches (which the count had taken back)";
+    const double asked = 4 * 2001;
+    EXPECT_GT(double(r.patches.size()), 1.1 * asked) << "grading added patches (which the count had taken back)";
     const double area = 100 + 2000 * 0.0025, floorShare = 100 / area;
     double floorArea = 0, floorPatches = 0;
     for (size_t i = 0; i < r.patches.size(); ++i)
         if (r.patches.object[i] == 0) floorArea += r.patches.area[i], ++floorPatches;
     EXPECT_NEAR(floorArea, 100, 1e-6);
-    EXPECT_GE(floorPatches, 0.9 * floorShare * 6003) << "the floor's uniform share, and its graded patches on top";
+    EXPECT_GE(floorPatches, 0.9 * floorShare * asked) << "the floor's uniform share, and its graded patches on top";
     o.manyObjectsRays = 0;
     o.grading.levels = 0;
     EXPECT_EQ(solveScene(scene, o).options.formFactors.raysPerPatch, 144);
