@@ -126,11 +126,11 @@ Scene floorUnderTiles(double height) {
 
 TEST(Meshing, ManySmallObjectsLeaveTheLargeSurfacesTheirShare) {
     // The floor under tiles 0.5 m up: at 3,000 patches in all the tiles would take two thirds and the
-    // floor be meshed at 18 cm; the default's floor of four per object asks 8,004, and the floor's
+    // floor be meshed at 18 cm; the default's floor (four per object) asks 8,004, and the floor's
     // share of the area gets its share of them.
     const Scene scene = floorUnderTiles(0.5);
     MeshingOptions o;
-    const double asked = 4 * 2001;
+    const double asked = MeshingOptions().patchesPerObject * 2001.0;
     EXPECT_EQ(patchTarget(scene, o), int(asked));
     const PatchSet p = meshScene(scene, o);
     const double area = 100 + 2000 * 0.0025, floorShare = 100 / area;
@@ -153,7 +153,7 @@ TEST(Meshing, ManyObjectsGradeOnTopOfTheLargeSurfacesShare) {
     o.vertexRadiosity = "average";
     const SolveResult r = solveScene(scene, o);
     EXPECT_EQ(r.options.formFactors.raysPerPatch, 64);
-    const double asked = 4 * 2001;
+    const double asked = MeshingOptions().patchesPerObject * 2001.0;
     EXPECT_GT(double(r.patches.size()), 1.1 * asked) << "grading added patches (which the count had taken back)";
     const double area = 100 + 2000 * 0.0025, floorShare = 100 / area;
     double floorArea = 0, floorPatches = 0;
