@@ -756,6 +756,56 @@ TEST(RayFormFactors, ASmallObjectAsksAtMostFourTimesTheRays) {
     EXPECT_GT(again.objectNoise[tile], 0.4 * once.objectNoise[tile]) << "with at most 4x the rays, not 64x";
 }
 
+// A wall meshed into 16 patches between a lamp and the floor: the floor patch under its middle is
+// hidden wholly by it (every corner-to-corner segment crosses it), and the visibility rays agree
+// (none of 64 gets through). A floor patch whose view of the lamp passes the wall's edge is not, nor
+// one on the lamp's side; a ball (not planar) and an object whose patches' hull is larger than they
+// are (not convex) hide nothing.
+TEST(ConvexOccluder, AWallHidesAPatchWhollyOnlyWhereEveryViewCrossesIt) {
+    const Scene scene = test::sceneFromJson(R"({
+      "materials": {"m": {"type": "diffuse", "reflectance": 0.5},
+                    "lamp": {"type": "diffuse", "reflectance": 0, "emission": 1}},
+      "objects": [
+        {"name": "wall", "type": "quad", "material": "m", "vertices": [[0,0,1],[2,0,1],[2,2,1],[0,2,1]]},
+        {"name": "lamp", "type": "quad", "material": "lamp",
+         "vertices": [[0.9,0.9,2],[0.9,1.1,2],[1.1,1.1,2],[1.1,0.9,2]]},
+        {"name": "under", "type": "quad", "material": "m",
+         "vertices": [[0.8,0.8,0],[1.2,0.8,0],[1.2,1.2,0],[0.8,1.2,0]]},
+        {"name": "beside", "type": "quad", "material": "m",
+         "vertices": [[2.6,0.8,0],[3.0,0.8,0],[3.0,1.2,0],[2.6,1.2,0]]},
+        {"name": "above", "type": "quad", "material": "m",
+         "vertices": [[0.8,0.8,1.5],[1.2,0.8,1.5],[1.2,1.2,1.5],[0.8,1.2,1.5]]},
+        {"name": "ball", "type": "sphere", "material": "m", "center": [5, 5, 1], "radius": 0.5}]})");
+    MeshingOptions m;
+    m.patchSize = 0.5;
+    m.patchesPerObject = 0;
+    const PatchSet p = meshScene(scene, m);
+    auto first = [&](int object) {
+        size_t i = 0;
+        while (p.object[i] != object) ++i;
+        return i;
+    };
+    const std::vector<ConvexOccluder> occluders = convexOccluders(p);
+    ASSERT_EQ(occluders.size(), scene.objects.size());
+    ASSERT_EQ(occluders[0].edges.size(), 4u) << "the wall's 16 patches make one square";
+    EXPECT_TRUE(occluders[5].edges.empty()) << "a ball is not planar";
+    const size_t lamp = first(1), under = first(2), beside = first(3), above = first(4);
+    EXPECT_TRUE(hidesWholly(occluders[0], p, under, lamp));
+    EXPECT_TRUE(hidesWholly(occluders[0], p, lamp, under)) << "either way round";
+    EXPECT_FALSE(hidesWholly(occluders[0], p, beside, lamp)) << "its view passes the wall's edge";
+    EXPECT_FALSE(hidesWholly(occluders[0], p, above, lamp)) << "on the lamp's side";
+    const auto rays = buildRayScene(scene, p);
+    EXPECT_EQ(visibleFraction(p, *rays, lamp, under, 1, 1, false, 64, 1).fraction, 0.0) << "the rays agree";
+    EXPECT_GT(visibleFraction(p, *rays, lamp, beside, 1, 1, false, 64, 1).fraction, 0.0);
+
+    // Two squares 1.4 m apart in one plane taken as one object's patches: their corners' hull is
+    // larger than they are (as an L's or a frame's would be), so they are no occluder.
+    PatchSet l = p;
+    for (size_t i = 0; i < l.size(); ++i)
+        if (l.object[i] == 2 || l.object[i] == 3) l.object[i] = 2;  // under and beside, 1.4 m apart
+    EXPECT_TRUE(convexOccluders(l)[2].edges.empty());
+}
+
 // A floor that sees a small lamp only through a hole in a screen between them (a room's floor, a
 // corridor's lamp through the door): 3.9% of the lamp's factor gets through. The pair's visible
 // share from visibleFraction (four rays to decide, as by default), averaged over 100,000 seeds

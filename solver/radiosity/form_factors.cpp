@@ -308,6 +308,93 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
     return F;
 }
 
+std::vector<ConvexOccluder> convexOccluders(const PatchSet& patches) {
+    std::vector<std::vector<size_t>> members;
+    for (size_t i = 0; i < patches.size(); ++i) {
+        const size_t o = size_t(patches.object[i]);
+        if (o >= members.size()) members.resize(o + 1);
+        members[o].push_back(i);
+    }
+    std::vector<ConvexOccluder> out(members.size());
+    using P2 = std::array<double, 2>;
+    auto cross = [](const P2& o, const P2& a, const P2& b) {
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+    };
+    for (size_t o = 0; o < members.size(); ++o) {
+        if (members[o].empty()) continue;
+        ConvexOccluder c;
+        const size_t first = members[o][0];
+        c.normal = patches.normal[first];
+        c.offset = c.normal.dot(patches.centroid[first]);
+        orthonormalBasis(c.normal, c.u, c.v);
+        std::vector<P2> points;
+        double area = 0, size = 0;
+        bool planar = true;
+        for (size_t i : members[o]) {
+            planar = planar && patches.normal[i].dot(c.normal) > 1 - 1e-9;
+            area += patches.area[i];
+            size = std::max(size, patches.radius[i]);
+            for (int k = 0; k < patches.cornerCount[i]; ++k) {
+                const Vec3& x = patches.corners[i][size_t(k)];
+                planar = planar && std::abs(c.normal.dot(x) - c.offset) <= 1e-9 + 1e-7 * patches.radius[i];
+                points.push_back({x.dot(c.u), x.dot(c.v)});
+            }
+        }
+        if (!planar) continue;
+        // Andrew's monotone chain: the hull counter-clockwise, without collinear points.
+        std::sort(points.begin(), points.end());
+        std::vector<P2> hull(2 * points.size());
+        size_t k = 0;
+        for (size_t i = 0; i < points.size(); ++i) {
+            while (k >= 2 && cross(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
+            hull[k++] = points[i];
+        }
+        for (size_t i = points.size() - 1, lower = k + 1; i-- > 0;) {
+            while (k >= lower && cross(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
+            hull[k++] = points[i];
+        }
+        hull.resize(k > 0 ? k - 1 : 0);
+        if (hull.size() < 3) continue;
+        double hullArea = 0;
+        for (size_t i = 0; i < hull.size(); ++i) hullArea += cross({0, 0}, hull[i], hull[(i + 1) % hull.size()]) / 2;
+        if (std::abs(hullArea - area) > 1e-6 * area) continue;  // not one convex polygon
+        c.margin = 1e-6 * size;
+        for (size_t i = 0; i < hull.size(); ++i) {
+            const P2 &s = hull[i], &e = hull[(i + 1) % hull.size()];
+            const double length = std::hypot(e[0] - s[0], e[1] - s[1]);
+            const double nx = -(e[1] - s[1]) / length, ny = (e[0] - s[0]) / length;  // left of a CCW edge
+            c.edges.push_back({nx, ny, nx * s[0] + ny * s[1]});
+        }
+        out[o] = std::move(c);
+    }
+    return out;
+}
+
+bool hidesWholly(const ConvexOccluder& o, const PatchSet& patches, size_t i, size_t j) {
+    if (o.edges.empty()) return false;
+    // Each corner in the occluder's frame (u, v, signed distance); all of i's on one side, all of
+    // j's strictly on the other.
+    std::array<Vec3, 4> a, b;
+    const int na = patches.cornerCount[i], nb = patches.cornerCount[j];
+    auto frame = [&](const Vec3& x) { return Vec3(x.dot(o.u), x.dot(o.v), o.normal.dot(x) - o.offset); };
+    for (int k = 0; k < na; ++k) a[size_t(k)] = frame(patches.corners[i][size_t(k)]);
+    for (int k = 0; k < nb; ++k) b[size_t(k)] = frame(patches.corners[j][size_t(k)]);
+    const double side = a[0][2] > 0 ? 1 : -1;
+    for (int k = 0; k < na; ++k)
+        if (!(side * a[size_t(k)][2] > o.margin)) return false;
+    for (int k = 0; k < nb; ++k)
+        if (!(-side * b[size_t(k)][2] > o.margin)) return false;
+    for (int k = 0; k < na; ++k)
+        for (int l = 0; l < nb; ++l) {
+            const Vec3 &p = a[size_t(k)], &q = b[size_t(l)];
+            const double t = p[2] / (p[2] - q[2]);
+            const double x = p[0] + t * (q[0] - p[0]), y = p[1] + t * (q[1] - p[1]);
+            for (const auto& e : o.edges)
+                if (!(e[0] * x + e[1] * y > e[2] + o.margin)) return false;
+        }
+    return true;
+}
+
 double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, size_t j,
                        const FormFactorSettings& settings, Blockers* blockers) {
     if (i == j) return 0;

@@ -150,6 +150,25 @@ struct Blockers {
     int next = 0;  // the slot the next blocker takes
 };
 
+// An object that is one convex planar polygon (a wall quad, however it is meshed) as an occluder.
+// Two convex patches whose every corner-to-corner segment crosses it, from one side to the other, are
+// wholly hidden from each other: any segment between them crosses the plane at a convex combination
+// of those crossings (weights alpha_k beta_l (d_k - d_l) >= 0 for signed distances d), so within it.
+struct ConvexOccluder {
+    Vec3 normal = Vec3::Zero(), u = Vec3::Zero(), v = Vec3::Zero();  // plane and its in-plane axes
+    double offset = 0, margin = 0;
+    // Its outline's edges in (u, v) as inward unit normals and offsets: (x, y) lies inside when
+    // nx x + ny y > c for every edge. Empty: not an occluder.
+    std::vector<std::array<double, 3>> edges;
+};
+
+// Per object: its outline if all its patches lie in one plane and together make one convex polygon
+// (their corners' convex hull has their area), else an empty one.
+std::vector<ConvexOccluder> convexOccluders(const PatchSet& patches);
+
+// Whether `o` hides patches i and j wholly from each other (ConvexOccluder).
+bool hidesWholly(const ConvexOccluder& o, const PatchSet& patches, size_t i, size_t j);
+
 // With `blockers` (patches that blocked like segments before), each segment is first tested against
 // those patches' triangles, as Embree splits them, and traced only if it misses them all; a traced
 // segment that is blocked adds its nearest blocker. The answer is the same; rows of patches side by

@@ -238,6 +238,10 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     const size_t columnCount = analytic.size();
     const bool known = previous && previous->exact.size() == n * columnCount;
     if (readings && !known) read.exact.assign(n * columnCount, 0.0f);
+    // Objects that are one convex polygon, which may hide a receiver from a source wholly.
+    const std::vector<ConvexOccluder> occluders =
+        columnCount && !known ? convexOccluders(patches) : std::vector<ConvexOccluder>();
+    std::atomic<uint64_t> pairsHidden{0};  // source-receiver pairs an occluder hid without rays
     const std::vector<Vec3>&tangentU = read.tangentU, &tangentV = read.tangentV;
     const double lift = originLift(patches);
     const int baseSide = stratumSide(settings.raysPerPatch);
@@ -279,6 +283,10 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             // Per analytic column, the patch that last blocked a visibility ray to it (rows in patch
             // order: neighbours, often behind the same wall).
             std::vector<Blockers> blockers(analytic.size());
+            // Per analytic column, the last object that hid a receiver wholly from it (the wall between
+            // the rooms: a receiver beside the last one is likely behind it too), -1 if none.
+            std::vector<int> wall(analytic.size(), -1);
+            uint64_t myHidden = 0;
             // The near hits among the origins that `counts`, each of weight w.
             auto collectNear = [&](char reach, const auto& counts, double w, std::vector<HitReadings::Near>& out) {
                 out.clear();
@@ -425,9 +433,17 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     double whole;
                     if (known) {
                         whole = previous->exact[i * columnCount + a];
+                    } else if (wall[a] >= 0 && hidesWholly(occluders[size_t(wall[a])], patches, i, j)) {
+                        whole = 0;  // read.exact is 0 already
+                        ++myHidden;
                     } else {
                         whole = frontFormFactor(patches, rays, i, j, settings, &blockers[a]);
                         if (readings) read.exact[i * columnCount + a] = float(whole);
+                        const int last = blockers[a].patch[size_t((blockers[a].next + 3) % 4)];
+                        if (whole == 0 && last >= 0) {
+                            const int o = patches.object[size_t(last)];
+                            if (o != wall[a] && hidesWholly(occluders[size_t(o)], patches, i, j)) wall[a] = o;
+                        }
                     }
                     const double f = whole / exposed[i];
                     if (f > 0) row.push_back({int32_t(j), float(f)});
@@ -506,6 +522,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 }
                 g_castRays.add(uint64_t(count + followed));
             }
+            pairsHidden += myHidden;
             std::lock_guard<std::mutex> lock(backMutex);
             back.insert(back.end(), myBack.begin(), myBack.end());
         },
@@ -534,7 +551,9 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                             : cat(double(firstRays) / std::max<size_t>(rowsCast, 1), " rays each on average, "),
             uint64_t(firstRays), " rays in ", timer.seconds(), " s; ", F.entries(), " entries stored, ",
             double(F.bytes()) / (1 << 20), " MiB; ", analytic.size(), " analytic columns (small sources) took ",
-            double(analyticNanos) * 1e-9 / threadCount(), " s of it");
+            double(analyticNanos) * 1e-9 / threadCount(), " s of it",
+            pairsHidden ? cat(" (", uint64_t(pairsHidden), " source-receiver pairs hidden wholly by one convex object)")
+                        : "");
     return F;
 }
 
