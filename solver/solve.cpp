@@ -249,6 +249,7 @@ std::vector<int> raysForObjectNoise(const Scene& scene, const SolveOptions& opti
             const double cap = area[o] < kSmallObjectPatches * patchArea ? kSmallObjectFactor : 64.0;
             for (size_t j : touched) {
                 const double t = (own[j] + c[j] * c[j] * rho(j) * rho(j)) * var[j];
+                if (!(t > 0)) continue;  // a patch wholly inside a solid casts nothing
                 const double f = std::min(cap, std::sqrt(t / rays(j)) * neyman / goal);
                 if (f > 1) wants.emplace_back(j, f);
             }

@@ -439,7 +439,8 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     } else {
                         whole = frontFormFactor(patches, rays, i, j, settings, &blockers[a]);
                         if (readings) read.exact[i * columnCount + a] = float(whole);
-                        const int last = blockers[a].patch[size_t((blockers[a].next + 3) % 4)];
+                        const Blockers& by = blockers[a];
+                        const int last = by.patch[(size_t(by.next) + by.patch.size() - 1) % by.patch.size()];
                         if (whole == 0 && last >= 0) {
                             const int o = patches.object[size_t(last)];
                             if (o != wall[a] && hidesWholly(occluders[size_t(o)], patches, i, j)) wall[a] = o;
