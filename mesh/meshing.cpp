@@ -205,6 +205,16 @@ double PatchSet::jacobian(size_t i, double u, double v) const {
     return du.cross(dv).norm();
 }
 
+std::vector<std::vector<size_t>> PatchSet::byObject(size_t objects) const {
+    std::vector<std::vector<size_t>> members(objects);
+    for (size_t i = 0; i < size(); ++i) {
+        const size_t o = size_t(object[i]);
+        if (o >= members.size()) members.resize(o + 1);
+        members[o].push_back(i);
+    }
+    return members;
+}
+
 void PatchSet::add(const std::array<Vec3, 4>& c, int count, int objectIndex, const std::array<int, 4>& vertexIds) {
     const Vec3 vectorArea =
         count == 3 ? 0.5 * (c[1] - c[0]).cross(c[2] - c[0]) : 0.5 * (c[2] - c[0]).cross(c[3] - c[1]);

@@ -34,6 +34,9 @@ struct PatchSet {
     double jacobian(size_t i, double u, double v) const;
     // Adds one patch and its display vertices (by index into `vertices`).
     void add(const std::array<Vec3, 4>& c, int count, int objectIndex, const std::array<int, 4>& vertexIds);
+    // Each object's patches, in order, indexed by object (as many as `objects`, or one past the
+    // largest object index if that is more).
+    std::vector<std::vector<size_t>> byObject(size_t objects = 0) const;
 };
 
 struct MeshingOptions {

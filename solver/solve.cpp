@@ -107,6 +107,12 @@ void solveBuiltMatrix(const SolveOptions& options, const StepObserver& observer,
 
 namespace {
 
+// The rays patch i's row was cast with at side x side strata: its exposed share of them, and of a
+// mean row the share it saw.
+double rowRays(const FormFactorMatrix& F, size_t i, int side) {
+    return double(side) * side * double(F.exposed[i]) * (F.hasMeanRow(i) ? F.seen[i] : 1.0);
+}
+
 // Per patch, the variance of the mean brightness its rays gather, each ray reading the brightness
 // of the patch it lands on (B, a first solve): (E[b^2] - E[b]^2) / rays from its row's ray-cast
 // shares, the analytic columns (exact) left out. Multinomial, so the gain of the strata is not in
@@ -123,45 +129,70 @@ std::vector<double> gatherVariance(const SolveResult& r, const std::vector<char>
             const double b = B[j].sum() / 3;
             m1 += f * b, m2 += f * b * b;
         });
-        const int side = i < raysFor.size() && raysFor[i] > 0 ? stratumSide(raysFor[i]) : base;
-        const double rays = double(side) * side * double(r.F.exposed[i]) * (r.F.hasMeanRow(i) ? r.F.seen[i] : 1.0);
+        const double rays = rowRays(r.F, i, i < raysFor.size() && raysFor[i] > 0 ? stratumSide(raysFor[i]) : base);
         var[i] = rays >= 1 ? std::max(0.0, m2 - m1 * m1) / rays : 0;
     }
     return var;
 }
 
-// Each object's estimated standard error, relative to its mean: its patches' own gathers,
-// sum (A_i rho_i)^2 var_i, and the noise of the patches they gather from, sum_j c_j^2 rho_j^2 var_j
-// with c_j = sum_i A_i rho_i F(i, j) (first order, each patch's noise its own gather's), over the
-// object's lit brightness sum(A_i b_i) (0 where it is dark or has no patches). `own` leaves out the
-// second term: more rays from the object's own patches reduce the first alone.
-std::vector<double> objectNoise(const Scene& scene, const SolveOptions& options, const SolveResult& r,
-                                const std::vector<char>& analytic, const std::vector<Rgb>& B,
-                                const std::vector<int>& raysFor, bool own = false) {
-    const std::vector<double> var = gatherVariance(r, analytic, B, options, raysFor);
-    const size_t n = r.patches.size();
-    auto rho = [&](size_t i) { return r.system.reflectance[i].sum() / 3; };
-    std::vector<std::vector<size_t>> members(scene.objects.size());
-    for (size_t i = 0; i < n; ++i) members[size_t(r.patches.object[i])].push_back(i);
-    std::vector<double> noise(scene.objects.size(), 0.0), c(own ? 0 : n, 0.0);
-    std::vector<size_t> touched;
-    for (size_t o = 0; o < members.size(); ++o) {
-        double sum = 0, light = 0;
-        for (size_t i : members[o]) {
-            const double w = r.system.area[i] * rho(i);
-            sum += w * w * var[i];
-            light += r.system.area[i] * B[i].sum() / 3;
-            if (own) continue;
-            r.F.forEachInRow(i, [&](size_t j, float f) {
-                if (c[j] == 0) touched.push_back(j);
-                c[j] += w * f;
+// An object's variance as a sum over patches, sum_j w_j var_j: its own patches' gathers, w_j =
+// (A_j rho_j)^2, and the noise of the patches they gather from, w_j = c_j^2 rho_j^2 with c_j =
+// sum_i A_i rho_i F(i, j) over its patches i (first order, each patch's noise its own gather's).
+// One object at a time: add, read, clear.
+class ObjectTerms {
+public:
+    explicit ObjectTerms(const SolveResult& r)
+        : r_(r), own_(r.patches.size(), 0.0), c_(r.patches.size(), 0.0), seen_(r.patches.size(), 0) {}
+
+    // Takes in the object's patches; returns its lit brightness, sum A_i b_i.
+    double add(const std::vector<size_t>& members, const std::vector<Rgb>& B) {
+        double light = 0;
+        for (size_t i : members) {
+            const double w = r_.system.area[i] * rho(i);
+            light += r_.system.area[i] * B[i].sum() / 3;
+            touch(i);
+            own_[i] += w * w;
+            r_.F.forEachInRow(i, [&](size_t j, float f) {
+                touch(j);
+                c_[j] += w * f;
             });
         }
-        for (size_t j : touched) {
-            sum += c[j] * c[j] * rho(j) * rho(j) * var[j];
-            c[j] = 0;
-        }
-        touched.clear();
+        return light;
+    }
+    // The patches with a term (own or gathered from), and each one's weight w_j.
+    const std::vector<size_t>& patches() const { return touched_; }
+    double weight(size_t j) const { return own_[j] + c_[j] * c_[j] * rho(j) * rho(j); }
+    void clear() {
+        for (size_t j : touched_) own_[j] = c_[j] = 0, seen_[j] = 0;
+        touched_.clear();
+    }
+
+private:
+    double rho(size_t i) const { return r_.system.reflectance[i].sum() / 3; }
+    void touch(size_t j) {
+        if (!seen_[j]) seen_[j] = 1, touched_.push_back(j);
+    }
+
+    const SolveResult& r_;
+    std::vector<double> own_, c_;
+    std::vector<char> seen_;
+    std::vector<size_t> touched_;
+};
+
+// Each object's estimated standard error (ObjectTerms' sum with each patch's gather variance), relative
+// to its mean: over the object's lit brightness sum(A_i b_i), 0 where it is dark or has no patches.
+std::vector<double> objectNoise(const Scene& scene, const SolveOptions& options, const SolveResult& r,
+                                const std::vector<char>& analytic, const std::vector<Rgb>& B,
+                                const std::vector<int>& raysFor) {
+    const std::vector<double> var = gatherVariance(r, analytic, B, options, raysFor);
+    const std::vector<std::vector<size_t>> members = r.patches.byObject(scene.objects.size());
+    std::vector<double> noise(members.size(), 0.0);
+    ObjectTerms terms(r);
+    for (size_t o = 0; o < members.size(); ++o) {
+        const double light = terms.add(members[o], B);
+        double sum = 0;
+        for (size_t j : terms.patches()) sum += terms.weight(j) * var[j];
+        terms.clear();
         noise[o] = light > 0 ? std::sqrt(sum) / light : 0;
     }
     return noise;
@@ -188,14 +219,10 @@ std::vector<int> raysForObjectNoise(const Scene& scene, const SolveOptions& opti
     const size_t n = r.patches.size();
     const int base = stratumSide(options.formFactors.raysPerPatch);
     const double baseRays = double(base) * base;
-    auto rho = [&](size_t i) { return r.system.reflectance[i].sum() / 3; };
-    auto rays = [&](size_t j) { return baseRays * double(r.F.exposed[j]) * (r.F.hasMeanRow(j) ? r.F.seen[j] : 1.0); };
-    std::vector<std::vector<size_t>> members(scene.objects.size());
-    std::vector<double> area(scene.objects.size(), 0.0);
-    for (size_t i = 0; i < n; ++i) {
-        members[size_t(r.patches.object[i])].push_back(i);
-        area[size_t(r.patches.object[i])] += r.patches.area[i];
-    }
+    auto rays = [&](size_t j) { return rowRays(r.F, j, base); };
+    const std::vector<std::vector<size_t>> members = r.patches.byObject(scene.objects.size());
+    std::vector<double> area(members.size(), 0.0);
+    for (size_t i = 0; i < n; ++i) area[size_t(r.patches.object[i])] += r.patches.area[i];
     // Each patch's variance as its object's patches have it on average (a ray's, area-weighted), over
     // its own rays: a patch's own sample variance picks the rows that happened to gather unusual
     // light (a row with none of a rare bright patch's rays states none), and casting those again while
@@ -217,45 +244,28 @@ std::vector<int> raysForObjectNoise(const Scene& scene, const SolveOptions& opti
     for (size_t i = 0; i < n; ++i) weighted += r.patches.area[i] * r.patches.area[i], total += r.patches.area[i];
     const double patchArea = total > 0 ? weighted / total : 0;
 
-    // Each object's terms t_j (own gathers and what it gathers from, as objectNoise has them) and
-    // the factors it asks, (patch, factor) with factor > 1.
-    std::vector<double> own(n, 0.0), c(n, 0.0);
-    std::vector<char> seen(n, 0);
-    std::vector<size_t> touched;
-    auto touch = [&](size_t j) {
-        if (!seen[j]) seen[j] = 1, touched.push_back(j);
-    };
+    // The factors each object asks, (patch, factor) with factor > 1, from its terms t_j = w_j var_j.
+    ObjectTerms terms(r);
+    std::vector<double> t(n, 0.0);
     auto asks = [&](size_t o) {
         std::vector<std::pair<size_t, double>> wants;
-        double light = 0;
-        for (size_t i : members[o]) {
-            const double w = r.system.area[i] * rho(i);
-            light += r.system.area[i] * B[i].sum() / 3;
-            touch(i);
-            own[i] += w * w;
-            r.F.forEachInRow(i, [&](size_t j, float f) {
-                touch(j);
-                c[j] += w * f;
-            });
-        }
+        const double light = terms.add(members[o], B);
         double sum = 0, neyman = 0;
-        for (size_t j : touched) {
-            const double t = (own[j] + c[j] * c[j] * rho(j) * rho(j)) * var[j];
-            sum += t;
-            neyman += std::sqrt(t * rays(j));
+        for (size_t j : terms.patches()) {
+            t[j] = terms.weight(j) * var[j];
+            sum += t[j];
+            neyman += std::sqrt(t[j] * rays(j));
         }
         const double goal = target * target * light * light;
         if (light > 0 && sum > goal) {
             const double cap = area[o] < kSmallObjectPatches * patchArea ? kSmallObjectFactor : 64.0;
-            for (size_t j : touched) {
-                const double t = (own[j] + c[j] * c[j] * rho(j) * rho(j)) * var[j];
-                if (!(t > 0)) continue;  // a patch wholly inside a solid casts nothing
-                const double f = std::min(cap, std::sqrt(t / rays(j)) * neyman / goal);
+            for (size_t j : terms.patches()) {
+                if (!(t[j] > 0)) continue;  // a patch wholly inside a solid casts nothing
+                const double f = std::min(cap, std::sqrt(t[j] / rays(j)) * neyman / goal);
                 if (f > 1) wants.emplace_back(j, f);
             }
         }
-        for (size_t j : touched) own[j] = c[j] = 0, seen[j] = 0;
-        touched.clear();
+        terms.clear();
         return wants;
     };
 

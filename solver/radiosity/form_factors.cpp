@@ -309,12 +309,7 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
 }
 
 std::vector<ConvexOccluder> convexOccluders(const PatchSet& patches) {
-    std::vector<std::vector<size_t>> members;
-    for (size_t i = 0; i < patches.size(); ++i) {
-        const size_t o = size_t(patches.object[i]);
-        if (o >= members.size()) members.resize(o + 1);
-        members[o].push_back(i);
-    }
+    const std::vector<std::vector<size_t>> members = patches.byObject();
     std::vector<ConvexOccluder> out(members.size());
     using P2 = std::array<double, 2>;
     auto cross = [](const P2& o, const P2& a, const P2& b) {
