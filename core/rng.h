@@ -23,6 +23,7 @@ inline uint64_t mixSeed(uint64_t a, uint64_t b = 0, uint64_t c = 0) {
 enum class Stream : uint64_t {
     Visibility = 1,              // form-factor visibility rays of a patch pair
     BackVisibility = 2,          // the rays to the back part of a straddling pair
+    VisibilityAgain = 4,         // a pair's visibility measured again with more rays (castMoreRays)
     Pixels = 3,                  // a pixel's camera samples (pairRng: row, column)
     SpecularTransport = 0x5bec,  // the solve's rays through mirrors and glass, per patch
     Photons = 0x9407,            // caustic photons, per photon

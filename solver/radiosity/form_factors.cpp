@@ -145,7 +145,7 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
     // The part of a in front of b's receiving face, and of b in front of a's sending face.
     const ClippedPolygon partA = clipped ? clipToSide(p, a, b, nb) : ClippedPolygon{};
     const ClippedPolygon partB = clipped ? clipToSide(p, b, a, na) : ClippedPolygon{};
-    if (clipped && (partA.count < 3 || partB.count < 3 || !(partA.area > 0) || !(partB.area > 0))) return {0.0, 0};
+    if (clipped && (partA.count < 3 || partB.count < 3 || !(partA.area > 0) || !(partB.area > 0))) return {0.0, 0, 0};
     // Each segment counts with the kernel between its ends, cos cos / r^2: a shadow that falls where
     // the patches see each other best (a desk under a lamp, the floor under the desk) takes its share
     // of the factor, not of the area; and the part of the other patch a point sees past an edge,
@@ -217,7 +217,7 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
     const bool edge = visible > 0 && visible < rays;
     ends.clear(), visible = 0, rays = 0;
     cast(edge ? kEdgeRays * base : base);
-    return {weightedFraction(visible, rays), rays + decided};
+    return {weightedFraction(visible, rays), rays + decided, rays};
 }
 
 FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& scene,
@@ -391,7 +391,8 @@ bool hidesWholly(const ConvexOccluder& o, const PatchSet& patches, size_t i, siz
 }
 
 double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, size_t j,
-                       const FormFactorSettings& settings, Blockers* blockers) {
+                       const FormFactorSettings& settings, Blockers* blockers, double* variance, Stream stream) {
+    if (variance) *variance = 0;
     if (i == j) return 0;
     const size_t a = std::min(i, j), b = std::max(i, j);
     const PlaneSides bSeenByA = planeSides(patches, a, b), aSeenByB = planeSides(patches, b, a);
@@ -402,9 +403,8 @@ double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, 
     const double reach = std::sqrt(std::max(patches.area[a], patches.area[b])) /
                          std::max((patches.centroid[a] - patches.centroid[b]).norm(), 1e-12);
     const int grid = std::clamp(int(std::ceil(4 * reach)), 1, 4);
-    const Visibility vis =
-        visibleFraction(patches, rays, a, b, 1, 1, bSeenByA.straddles() || aSeenByB.straddles(),
-                        settings.visibilityRays * grid * grid, settings.seed, Stream::Visibility, blockers);
+    const Visibility vis = visibleFraction(patches, rays, a, b, 1, 1, bSeenByA.straddles() || aSeenByB.straddles(),
+                                           settings.visibilityRays * grid * grid, settings.seed, stream, blockers);
     g_visibilityRays.add(uint64_t(vis.rays));
     if (vis.fraction == 0) return 0;
     uint64_t evaluations = 0;
@@ -412,7 +412,12 @@ double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, 
     const AreaFactors g =
         unoccludedAreaFactors(patches, aSmaller ? a : b, aSmaller ? b : a, settings.cubature, &evaluations);
     g_kernelEvaluations.add(evaluations);
-    return vis.fraction * g.front / patches.area[i];
+    const double unoccluded = g.front / patches.area[i];
+    // The unbiased estimate of a share's variance from m measuring rays, v (1 - v) / (m - 1) (its
+    // kernel weights, where the rays disagree, taken as even).
+    if (variance && vis.measured > 1)
+        *variance = unoccluded * unoccluded * vis.fraction * (1 - vis.fraction) / (vis.measured - 1);
+    return vis.fraction * unoccluded;
 }
 
 FormFactorMatrix::FormFactorMatrix(size_t n, std::vector<uint64_t> rowStart, std::vector<int32_t> column,

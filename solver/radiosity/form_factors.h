@@ -100,6 +100,14 @@ public:
     // (ray_form_factors.h). Where it is one, row i is both.
     std::vector<float> seen;
     bool hasMeanRow(size_t i) const { return i < seen.size() && seen[i] < 1; }
+    // Ray-cast rows only: the variance of each analytic entry (a small source's column, measured by
+    // visibility rays) whose measuring rays disagreed, rows ascending. A patch in a penumbra reads its
+    // lamp through a few rays; this is that noise, which the rays' own gather does not hold.
+    struct EntryVariance {
+        int32_t row, column;
+        float variance;  // of F(row, column)
+    };
+    std::vector<EntryVariance> entryVariance;
     SparseRow meanRow(size_t i) const {
         return {meanColumn_.data() + meanStart_[i], meanValue_.data() + meanStart_[i],
                 size_t(meanStart_[i + 1] - meanStart_[i])};
@@ -142,7 +150,8 @@ PlaneSides planeSides(const PatchSet& p, size_t a, size_t b);
 // (`clipped`), the segments start on its facing part alone.
 struct Visibility {
     double fraction;
-    int rays;
+    int rays;      // cast, the deciding ones included
+    int measured;  // of which the estimate is made
 };
 // The last few patches that blocked segments to one patch (a lamp), for visibleFraction.
 struct Blockers {
@@ -181,9 +190,13 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& ray
 
 // F(i -> j) from i's front to j's front alone, as computeFormFactors finds it (0 unless each lies in
 // front of the other): visibility rays (more where the larger patch is wide for the pair's distance,
-// up to 16 times `visibilityRays`), then the kernel's cubature over the smaller patch.
+// up to 16 times `visibilityRays`), then the kernel's cubature over the smaller patch. `variance`, if
+// given, receives the estimate's variance from the spread of its measuring rays (0 where they agree:
+// its expectation over the rays is the variance's, whatever the truth). `stream` sets the rays: a
+// second estimate of the same pair needs a stream of its own.
 double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, size_t j,
-                       const FormFactorSettings& settings, Blockers* blockers = nullptr);
+                       const FormFactorSettings& settings, Blockers* blockers = nullptr, double* variance = nullptr,
+                       Stream stream = Stream::Visibility);
 
 // What `auto` form factors run on these patches, and why: the analytic cubature while the patch pairs
 // that face each other are few enough for it to take well under a second (at most

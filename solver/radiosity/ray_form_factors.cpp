@@ -214,7 +214,7 @@ Vec3 HitReadings::uncoveredCentroid(const PatchSet& p, size_t i) const {
 
 FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings,
                                  const std::vector<char>& analyticColumns, const std::vector<char>& emitting,
-                                 HitReadings* readings, const std::vector<int>& raysFor, const HitReadings* previous) {
+                                 HitReadings* readings, const std::vector<int>& raysFor) {
     Timer timer;
     const size_t n = patches.size();
     std::vector<size_t> analytic;
@@ -236,11 +236,10 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     for (size_t i = 0; i < n; ++i) orthonormalBasis(patches.normal[i], read.tangentU[i], read.tangentV[i]);
     read.shift.assign(n, {0.0f, 0.0f});
     const size_t columnCount = analytic.size();
-    const bool known = previous && previous->exact.size() == n * columnCount;
-    if (readings && !known) read.exact.assign(n * columnCount, 0.0f);
     // Objects that are one convex polygon, which may hide a receiver from a source wholly.
     const std::vector<ConvexOccluder> occluders =
-        columnCount && !known ? convexOccluders(patches) : std::vector<ConvexOccluder>();
+        columnCount ? convexOccluders(patches) : std::vector<ConvexOccluder>();
+    std::vector<FormFactorMatrix::EntryVariance> entryVariance;
     std::atomic<uint64_t> pairsHidden{0};  // source-receiver pairs an occluder hid without rays
     const std::vector<Vec3>&tangentU = read.tangentU, &tangentV = read.tangentV;
     const double lift = originLift(patches);
@@ -287,6 +286,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             // the rooms: a receiver beside the last one is likely behind it too), -1 if none.
             std::vector<int> wall(analytic.size(), -1);
             uint64_t myHidden = 0;
+            std::vector<FormFactorMatrix::EntryVariance> myVariance, rowVariance;
             // The near hits among the origins that `counts`, each of weight w.
             auto collectNear = [&](char reach, const auto& counts, double w, std::vector<HitReadings::Near>& out) {
                 out.clear();
@@ -426,19 +426,23 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 }
                 // The analytic columns, computed as the analytic matrix computes them (over the whole
                 // patch, whose covered part sees no source), then as a mean over the uncovered part.
+                // A row cast again measures them again too, with its share more visibility rays (a
+                // stream of their own): a floor patch in a desk's penumbra reads its lamp through a few
+                // rays, and that noise is what its neighbours gather (EntryVariance).
+                FormFactorSettings visibility = settings;
+                visibility.visibilityRays = settings.visibilityRays * std::clamp(count / baseCount, 1, 8);
+                const Stream stream = raysFor.empty() ? Stream::Visibility : Stream::VisibilityAgain;
                 double exact = 0;
+                rowVariance.clear();
                 const Timer columns;
                 for (size_t a = 0; a < columnCount; ++a) {
                     const size_t j = analytic[a];
-                    double whole;
-                    if (known) {
-                        whole = previous->exact[i * columnCount + a];
-                    } else if (wall[a] >= 0 && hidesWholly(occluders[size_t(wall[a])], patches, i, j)) {
-                        whole = 0;  // read.exact is 0 already
+                    double whole, variance = 0;
+                    if (wall[a] >= 0 && hidesWholly(occluders[size_t(wall[a])], patches, i, j)) {
+                        whole = 0;
                         ++myHidden;
                     } else {
-                        whole = frontFormFactor(patches, rays, i, j, settings, &blockers[a]);
-                        if (readings) read.exact[i * columnCount + a] = float(whole);
+                        whole = frontFormFactor(patches, rays, i, j, visibility, &blockers[a], &variance, stream);
                         const Blockers& by = blockers[a];
                         const int last = by.patch[(size_t(by.next) + by.patch.size() - 1) % by.patch.size()];
                         if (whole == 0 && last >= 0) {
@@ -448,6 +452,9 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                     }
                     const double f = whole / exposed[i];
                     if (f > 0) row.push_back({int32_t(j), float(f)});
+                    if (variance > 0)
+                        rowVariance.push_back(
+                            {int32_t(i), int32_t(j), float(variance / (double(exposed[i]) * exposed[i]))});
                     exact += f;
                 }
                 if (!analytic.empty()) analyticNanos += int64_t(columns.seconds() * 1e9);
@@ -518,14 +525,19 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                                 row.push_back({j, float(double(f) * open / unhidden)});
                         for (int32_t j : touched) row.push_back({j, float(scale * hits[size_t(j)] / unhidden)});
                         std::sort(row.begin(), row.end());
+                        for (auto& e : rowVariance)
+                            e.variance *= float(double(open) * open / (double(unhidden) * unhidden));
                     }
+                    if (unhidden <= 0) rowVariance.clear();
                     for (int32_t j : touched) hits[size_t(j)] = 0;
                 }
+                myVariance.insert(myVariance.end(), rowVariance.begin(), rowVariance.end());
                 g_castRays.add(uint64_t(count + followed));
             }
             pairsHidden += myHidden;
             std::lock_guard<std::mutex> lock(backMutex);
             back.insert(back.end(), myBack.begin(), myBack.end());
+            entryVariance.insert(entryVariance.end(), myVariance.begin(), myVariance.end());
         },
         8);
     progress.done();
@@ -544,6 +556,9 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     F.seen = std::move(seen);
     F.setMeanRows(std::move(meanStart), std::move(meanColumn), std::move(meanValue));
     sortBackTransfers(F.backTransfers);
+    std::sort(entryVariance.begin(), entryVariance.end(),
+              [](const auto& x, const auto& y) { return x.row != y.row ? x.row < y.row : x.column < y.column; });
+    F.entryVariance = std::move(entryVariance);
     if (hidden)
         logInfo("form factors (rays): ", size_t(hidden), " patches partly hidden (", size_t(hidden) - size_t(inGaps),
                 " behind back faces, ", size_t(inGaps), " in narrow gaps)");
@@ -554,7 +569,8 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             double(F.bytes()) / (1 << 20), " MiB; ", analytic.size(), " analytic columns (small sources) took ",
             double(analyticNanos) * 1e-9 / threadCount(), " s of it",
             pairsHidden ? cat(" (", uint64_t(pairsHidden), " source-receiver pairs hidden wholly by one convex object)")
-                        : "");
+                        : "",
+            F.entryVariance.empty() ? "" : cat("; ", F.entryVariance.size(), " of their entries in a penumbra"));
     return F;
 }
 
@@ -564,7 +580,7 @@ void castMoreRays(FormFactorMatrix& F, HitReadings& read, const PatchSet& patche
     const size_t n = F.size();
     if (!F.isSparse() || raysFor.size() != n || read.rows.size() != n) return;
     HitReadings more;
-    FormFactorMatrix part = castFormFactors(patches, rays, settings, analyticColumns, emitting, &more, raysFor, &read);
+    FormFactorMatrix part = castFormFactors(patches, rays, settings, analyticColumns, emitting, &more, raysFor);
     std::vector<std::vector<std::pair<int32_t, float>>> rows(n), meanRows(n);
     std::vector<float> exposed = F.exposed, seen = F.seen;
     for (size_t i = 0; i < n; ++i) {
@@ -582,6 +598,13 @@ void castMoreRays(FormFactorMatrix& F, HitReadings& read, const PatchSet& patche
         read.farRows[i] = std::move(more.farRows[i]), read.farMeanRows[i] = std::move(more.farMeanRows[i]);
         read.shift[i] = more.shift[i];
     }
+    std::vector<FormFactorMatrix::EntryVariance> variance;
+    for (const auto& e : F.entryVariance)
+        if (raysFor[size_t(e.row)] <= 0) variance.push_back(e);
+    variance.insert(variance.end(), part.entryVariance.begin(), part.entryVariance.end());
+    std::sort(variance.begin(), variance.end(),
+              [](const auto& x, const auto& y) { return x.row != y.row ? x.row < y.row : x.column < y.column; });
+    F.entryVariance = std::move(variance);
     std::vector<BackTransfer> back;
     for (const BackTransfer& t : F.backTransfers)
         if (raysFor[size_t(t.from)] <= 0) back.push_back(t);

@@ -62,8 +62,7 @@ namespace penumbra {
 struct HitReadings;
 FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, const FormFactorSettings& settings,
                                  const std::vector<char>& analyticColumns = {}, const std::vector<char>& emitting = {},
-                                 HitReadings* readings = nullptr, const std::vector<int>& raysFor = {},
-                                 const HitReadings* previous = nullptr);
+                                 HitReadings* readings = nullptr, const std::vector<int>& raysFor = {});
 
 // A patch's radiosity is its mean, and a ray that lands on it reads that mean wherever it lands. A
 // receiver close to the patch sees its near part more than its far part, and where the light bends
@@ -89,10 +88,6 @@ struct HitReadings {
     std::vector<std::vector<Near>> rows, meanRows;
     // The same for the hits that landed farther (read only on steep patches: readLightWhereRaysLand).
     std::vector<std::vector<Near>> farRows, farMeanRows;
-    // Per row, the analytic columns' front form factors over the whole patch, in column order (row i
-    // at i * columns): a pass that casts a row again (castMoreRays, given them as `previous`) takes
-    // them from here, the same numbers, instead of computing them again.
-    std::vector<float> exact;
     // Per patch: its tangent frame; its uncovered part's centroid, offset in it; its neighbours k
     // (start .. start + 1) and their least-squares weights q_k = M^-1 d_k (d_k: the offset of k's
     // centroid, M: the sum of d_k d_k^T), so that the slope is the sum of q_k (B_k - B_j).
