@@ -215,8 +215,9 @@ std::vector<double> objectNoise(const Scene& scene, const SolveOptions& options,
 // cast again, not its own (the floor as a whole is quiet). Per object at most 64 times the rays
 // (kSmallObjectFactor for objects of fewer than kSmallObjectPatches patches' area), in all at most
 // as many rays again as the first pass: the largest objects are served first, each in full while
-// that lasts, and the rest share what is left in proportion to what they ask. Empty when no object
-// needs more. The building's large surfaces: 1.75 misses of 1% a solve over 8 seeds with each
+// that lasts, and the rest share what is left in proportion to what they ask; then the large
+// surfaces ask for a tighter target from half as many again (below). Empty when no object needs
+// more. The building's large surfaces: 1.75 misses of 1% a solve over 8 seeds with each
 // object's own rows cast again (an even share of the budget), 0.125 with this.
 constexpr double kSmallObjectPatches = 3, kSmallObjectFactor = 4;
 constexpr double kTightPatches = 14, kTightest = 0.4, kTightBudget = 0.5;
@@ -328,9 +329,9 @@ std::vector<int> raysForObjectNoise(const Scene& scene, const SolveOptions& opti
     // 0.53-0.72%, for 1-2 s. Inside the budget above instead, the Cornell box's walls, served first,
     // starved its blocks (worst object up to 2.6%).
     double tightBudget = kTightBudget * baseRays * double(n);
+    const double tightArea = kTightPatches * patchArea;
     size_t tightened = 0;
     for (size_t o : order) {
-        const double tightArea = kTightPatches * patchArea;
         if (!(area[o] > tightArea)) break;
         const std::vector<std::pair<size_t, double>> wants =
             asks(o, target * std::max(kTightest, std::sqrt(tightArea / area[o])));
@@ -632,7 +633,8 @@ std::vector<SolveSetting> solveSettings(SolveOptions& o) {
          1, 1 << 24, true, &o.formFactors.raysPerPatch},
         {"ff_noise", "--ff-noise",
          "--form-factors rays: cast more rays from the patches of each object whose mean radiosity's estimated "
-         "standard error is above this share of it (up to 64x --ff-rays, at most as many rays again in all; 1: off)",
+         "standard error is above this share of it (up to 64x --ff-rays, at most as many rays again in all, and half "
+         "as many more for large surfaces to a tighter target; 1: off)",
          1e-6, 1, true, &o.formFactors.objectNoise},
         {"specular_rays", "--specular-rays", "Rays per patch that trace light through mirrors and glass in the solve",
          1, 1 << 24, true, &o.specular.raysPerPatch},

@@ -206,6 +206,12 @@ void foldNearHits(FormFactorMatrix::SparseRow row, const std::vector<HitReadings
     }
 }
 
+// FormFactorMatrix::entryVariance's order: rows ascending, columns within them.
+void sortByRow(std::vector<FormFactorMatrix::EntryVariance>& v) {
+    std::sort(v.begin(), v.end(),
+              [](const auto& x, const auto& y) { return x.row != y.row ? x.row < y.row : x.column < y.column; });
+}
+
 }  // namespace
 
 Vec3 HitReadings::uncoveredCentroid(const PatchSet& p, size_t i) const {
@@ -556,8 +562,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     F.seen = std::move(seen);
     F.setMeanRows(std::move(meanStart), std::move(meanColumn), std::move(meanValue));
     sortBackTransfers(F.backTransfers);
-    std::sort(entryVariance.begin(), entryVariance.end(),
-              [](const auto& x, const auto& y) { return x.row != y.row ? x.row < y.row : x.column < y.column; });
+    sortByRow(entryVariance);
     F.entryVariance = std::move(entryVariance);
     if (hidden)
         logInfo("form factors (rays): ", size_t(hidden), " patches partly hidden (", size_t(hidden) - size_t(inGaps),
@@ -602,8 +607,7 @@ void castMoreRays(FormFactorMatrix& F, HitReadings& read, const PatchSet& patche
     for (const auto& e : F.entryVariance)
         if (raysFor[size_t(e.row)] <= 0) variance.push_back(e);
     variance.insert(variance.end(), part.entryVariance.begin(), part.entryVariance.end());
-    std::sort(variance.begin(), variance.end(),
-              [](const auto& x, const auto& y) { return x.row != y.row ? x.row < y.row : x.column < y.column; });
+    sortByRow(variance);
     F.entryVariance = std::move(variance);
     std::vector<BackTransfer> back;
     for (const BackTransfer& t : F.backTransfers)
