@@ -137,7 +137,7 @@ std::string settingText(const Setting& s) {
     else if (s.ffRays < 0)
         t += cat(", analytic FF", s.ffTolerance != CubatureSettings{}.tolerance ? cat(" tol ", s.ffTolerance) : "");
     if (s.tolerance != SolverSettings{}.tolerance) t += cat(", tol ", s.tolerance);
-    if (s.specularRays != SpecularSettings{}.raysPerPatch && s.method != "path")
+    if (s.specularRays != SpecularSettings{}.pathsPerPatch && s.method != "path")
         t += cat(", ", s.specularRays, " specular rays");
     t += cat(", ", s.spp, " spp");
     if (s.method == "final-gather") {

@@ -38,7 +38,7 @@ struct Baseline {
     int visibilityRays = FormFactorSettings{}.visibilityRays;
     double ffTolerance = CubatureSettings{}.tolerance;
     double tolerance = SolverSettings{}.tolerance;
-    int specularRays = SpecularSettings{}.raysPerPatch;
+    int specularRays = SpecularSettings{}.pathsPerPatch;
     int64_t photons = PhotonSettings{}.photons;
     int photonK = PhotonSettings{}.nearest;
     int gatherRays = GatherSettings{}.gatherRays;
@@ -105,7 +105,7 @@ std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b)
              quick ? std::vector<int64_t>{50000} : std::vector<int64_t>{10000, 100000, 4000000},
              [](Setting& s, int64_t v) { s.photons = v; });
         vary(plan, b, gather, "photon-k", quick ? Ints{25} : Ints{25, 400}, [](Setting& s, int v) { s.photonK = v; });
-        vary(plan, b, gather, "specular-rays", quick ? Ints{512} : Ints{512, 16384},
+        vary(plan, b, gather, "specular-rays", quick ? Ints{8} : Ints{8, 512},
              [](Setting& s, int v) { s.specularRays = v; });
     }
     vary(plan, b, gather, "gather-rays", quick ? Ints{4} : Ints{4, 64}, [](Setting& s, int v) { s.gatherRays = v; });
@@ -120,12 +120,12 @@ std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b)
     };
     const int sr = b.specularRays;
     vary(plan, b, gather, "combined",
-         quick ? std::vector<Combo>{{250, 1, 4, 1e-3, 512}}
-               : std::vector<Combo>{{500, 4, 8, 1e-3, 1024},
-                                    {1000, 4, 8, 1e-3, 1024},
-                                    {1000, 8, 4, 1e-3, 1024},
-                                    {1000, 8, 8, 1e-3, 1024},
-                                    {1000, 16, 4, 1e-3, 1024},
+         quick ? std::vector<Combo>{{250, 1, 4, 1e-3, 8}}
+               : std::vector<Combo>{{500, 4, 8, 1e-3, 16},
+                                    {1000, 4, 8, 1e-3, 16},
+                                    {1000, 8, 4, 1e-3, 16},
+                                    {1000, 8, 8, 1e-3, 16},
+                                    {1000, 16, 4, 1e-3, 16},
                                     {1000, 8, 16, 1e-3, sr},
                                     {2000, 16, 16, 1e-4, sr},
                                     {8000, 64, 32, 1e-5, sr}},
@@ -379,7 +379,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
     if (s.ffRays != 0) o.formFactors.method = s.ffRays > 0 ? "rays" : "analytic";
     if (s.ffRays > 0) o.formFactors.raysPerPatch = s.ffRays, o.manyObjectsRays = 0;
     o.formFactors.seed = options_.seed;
-    o.specular.raysPerPatch = s.specularRays;
+    o.specular.pathsPerPatch = s.specularRays;
     o.solverSettings.tolerance = tolerances.front();
     o.solver = s.solver;
     o.refine.tolerance = s.refine;

@@ -412,12 +412,20 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
 
     // What a row sends to mirrors and glass, the transport passes on by the row's own shares: made
     // again whenever rows are cast again.
-    auto transport = [&](const std::vector<int>& only) {
+    // The paths that carry it also measure each row's shares to mirrors and glass again, with the rays
+    // the row was cast with (matchSpecularShares, once F is final).
+    auto transport = [&](const std::vector<int>& raysFor) {
         const SceneTracer tracer(scene, r.patches, r.rays);
         SpecularSettings specular = options.specular;
         specular.seed = options.formFactors.seed;
+        std::vector<double> cast;
+        if (r.F.sampled) {
+            const int base = stratumSide(options.formFactors.raysPerPatch);
+            for (size_t i = 0; i < n; ++i)
+                cast.push_back(rowRays(r.F, i, i < raysFor.size() && raysFor[i] > 0 ? stratumSide(raysFor[i]) : base));
+        }
         r.system.transport =
-            computeSpecularTransport(scene, r.patches, r.F, tracer, specular, &r.system.transport, only);
+            computeSpecularTransport(scene, r.patches, r.F, tracer, specular, &r.system.transport, cast);
         r.secondsSpecular += r.system.transport.seconds;
     };
     if (scene.hasSpecular())
@@ -452,6 +460,7 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
         readings = HitReadings();
         r.secondsSolve += readTimer.seconds();
     }
+    matchSpecularShares(r.F, r.system.transport);
     solveBuiltMatrix(options, observer, r);
 }
 
@@ -636,8 +645,9 @@ std::vector<SolveSetting> solveSettings(SolveOptions& o) {
          "standard error is above this share of it (up to 64x --ff-rays, at most as many rays again in all, and half "
          "as many more for large surfaces to a tighter target; 1: off)",
          1e-6, 1, true, &o.formFactors.objectNoise},
-        {"specular_rays", "--specular-rays", "Rays per patch that trace light through mirrors and glass in the solve",
-         1, 1 << 24, true, &o.specular.raysPerPatch},
+        {"specular_rays", "--specular-rays",
+         "Light paths per patch that sees a mirror or glass, traced from their surfaces in the solve", 1, 1 << 24, true,
+         &o.specular.pathsPerPatch},
         {"specular_max_depth", "--specular-depth", "Mirror and glass bounces the solve's transport follows", 0, 1000,
          true, &o.specular.maxDepth},
         {"refine", "--refine",

@@ -87,6 +87,12 @@ public:
     const Rgb& emittedPower() const { return emittedPower_; }
     // Number of exact spheres standing in for mirror and glass sphere objects.
     size_t exactSpheres() const { return sphereObject_.size(); }
+    // The exact sphere standing in for `object`, or null where its patches are traced.
+    const RaySphere* exactSphere(int object) const {
+        for (size_t k = 0; k < sphereObject_.size(); ++k)
+            if (sphereObject_[k] == object) return &spheres_[k];
+        return nullptr;
+    }
 
 private:
     const Scene& scene_;

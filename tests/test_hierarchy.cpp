@@ -140,7 +140,7 @@ TEST(Hierarchy, AutoPicksTheMatrixWhenItFitsAndTheHierarchyWhenNot) {
     EXPECT_EQ(tight.solverName, "hierarchical");
     EXPECT_NE(tight.solverReason.find("hierarchy"), std::string::npos) << tight.solverReason;
     o.maxMemoryBytes = 0;
-    o.specular.raysPerPatch = 256;  // the choice, not the caustic, is under test
+    o.specular.pathsPerPatch = 256;  // the choice, not the caustic, is under test
     const SolveResult glass = solveScene(test::sceneFromJson(sceneFile("cornell-glass.json"), "glass.json"), o);
     EXPECT_EQ(glass.solverName, "gauss-seidel") << "mirrors and glass need the matrix";
 }

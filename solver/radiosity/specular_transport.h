@@ -1,13 +1,21 @@
 // Mirrors and glass in the radiosity solve: extended form factors (Sillion & Puech 1989, by ray
 // tracing). Light leaving a diffuse patch i that first meets a mirror or glass object o is the share
-// F(i, o) = sum of F(i, s) over o's patches, which the dense matrix already holds exactly; rays
-// from i, cosine-distributed, that meet o first tell where that share goes: through reflections and
-// refractions (Fresnel, chosen at random in proportion) to the front of a diffuse patch j, absorbed
-// by a mirror or a glass tint, absorbed by a back face, or out of the scene. Each ray's fates sum
-// to one, so the split of F(i, o) conserves energy exactly and the power balance still closes.
+// F(i, o) = sum of F(i, s) over o's patches, which the matrix holds; where that share goes (through
+// reflections and refractions, Fresnel chosen at random in proportion, to the front of a diffuse
+// patch j; absorbed by a mirror, a glass tint or a back face; out of the scene) is told by light
+// paths traced from the mirror's and glass's own surfaces: a point x on o and a direction w out of
+// it; the ray from x along w finds the patch i the light comes from (it must see o directly), and
+// the light's walk on from x through o finds where it goes. The paths sample the etendue through o
+// once for every patch at the same time (per patch, rays from i would mostly miss a small ball:
+// 4,096 a patch took 2.2 s on cornell-glass and most found nothing); by reciprocity the share of
+// i's light that a path carries is its weight in etendue. Half the directions are aimed at the
+// lamps (multiple importance sampling, balance heuristic): the lamps' light through o is most of
+// what o passes on. Row i's fates are then scaled to sum to F(i, o), so the split conserves energy
+// exactly and the power balance still closes.
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "core/math.h"
@@ -18,9 +26,12 @@
 
 namespace penumbra {
 
+struct SpecularPaths;  // the traced paths (specular_transport.cpp)
+
 struct SpecularSettings {
-    int raysPerPatch = 4096;  // cosine rays from each patch that sees a mirror or glass
-    int maxDepth = 64;        // specular bounces before a chain is counted absorbed
+    int pathsPerPatch = 64;  // paths traced from the mirrors and glass per patch that sees one
+    double lampShare = 0.5;  // of the paths' directions, the share aimed at the lamps
+    int maxDepth = 64;       // specular bounces before a chain is counted absorbed
     uint64_t seed = 1;
 };
 
@@ -40,9 +51,17 @@ struct SpecularTransport {
     std::vector<int> lossObject;
     std::vector<Rgb> lossShare;
 
-    double unresolvedShare = 0;         // area-weighted share F(i, o) no ray found (counted absorbed by o)
+    double unresolvedShare = 0;         // area-weighted share F(i, o) no path found (counted absorbed by o)
     std::vector<double> rowUnresolved;  // that share per source patch
     double seconds = 0;
+    int64_t paths = 0;  // light paths traced from the mirrors' and glass's surfaces
+    // The paths, kept: rows cast again scale them to their new shares without tracing again.
+    std::shared_ptr<const SpecularPaths> traced;
+    // The share F(i, o) each row sends through mirror or glass object o (share[i * groups + o]), and
+    // each patch's object (-1 unless a mirror's or glass's): matchSpecularShares makes F agree.
+    std::vector<double> share;
+    std::vector<int> patchGroup;
+    size_t groups = 0;
 
     bool empty() const { return inStart.empty(); }
     // sum_i weight(i -> j) B_i, W/m^2.
@@ -54,12 +73,18 @@ struct SpecularTransport {
     }
 };
 
-// Empty when the scene has no mirror or glass.
-// With `previous` and `only`, the rows i with only[i] > 0 are traced again (their rows of F were cast
-// again: castMoreRays) and the others kept from `previous`.
+// Empty when the scene has no mirror or glass. With `previous`, its paths are scaled to the rows of
+// F again (rows cast again: castMoreRays) instead of being traced again. With `rowRays`, the rays
+// each row of a ray-cast F was cast with, each row's shares F(i, o) are measured again by the paths
+// too (SpecularTransport::share; then matchSpecularShares); without, F's are kept.
 SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& patches, const FormFactorMatrix& F,
                                            const SceneTracer& tracer, const SpecularSettings& settings,
                                            const SpecularTransport* previous = nullptr,
-                                           const std::vector<int>& only = {});
+                                           const std::vector<double>& rowRays = {});
+
+// Scales each row of F so that its entries to mirror or glass object o sum to the transport's share
+// for it and the rest (with what escapes, one minus the row's sum) to what is left: every row still
+// sends all of its light somewhere, exactly.
+void matchSpecularShares(FormFactorMatrix& F, const SpecularTransport& transport);
 
 }  // namespace penumbra
