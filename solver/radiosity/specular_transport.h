@@ -8,10 +8,11 @@
 // the light's walk on from x through o finds where it goes. The paths sample the etendue through o
 // once for every patch at the same time (per patch, rays from i would mostly miss a small ball:
 // 4,096 a patch took 2.2 s on cornell-glass and most found nothing); by reciprocity the share of
-// i's light that a path carries is its weight in etendue. Half the directions are aimed at the
-// lamps (multiple importance sampling, balance heuristic): the lamps' light through o is most of
-// what o passes on. Row i's fates are then scaled to sum to F(i, o), so the split conserves energy
-// exactly and the power balance still closes.
+// i's light that a path carries is its weight in etendue. Half the directions are aimed at points
+// on the lamps, in proportion to the light each sends into o (multiple importance sampling, the
+// balance heuristic): the lamps' light through o is most of what o passes on. Row i's fates are
+// then scaled to the row's share of o, so the split conserves energy exactly and the power balance
+// still closes.
 #pragma once
 
 #include <cstdint>
@@ -29,9 +30,9 @@ namespace penumbra {
 struct SpecularPaths;  // the traced paths (specular_transport.cpp)
 
 struct SpecularSettings {
-    int pathsPerPatch = 64;  // paths traced from the mirrors and glass per patch that sees one
-    double lampShare = 0.5;  // of the paths' directions, the share aimed at the lamps
-    int maxDepth = 64;       // specular bounces before a chain is counted absorbed
+    int pathsPerPatch = 128;  // paths traced from the mirrors and glass per patch that sees one
+    double aimedShare = 0.5;  // of the paths' directions, the share aimed at the lamps
+    int maxDepth = 64;        // specular bounces before a chain is counted absorbed
     uint64_t seed = 1;
 };
 
