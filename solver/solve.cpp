@@ -192,7 +192,9 @@ private:
 std::vector<double> objectNoise(const Scene& scene, const SolveOptions& options, const SolveResult& r,
                                 const std::vector<char>& analytic, const std::vector<Rgb>& B,
                                 const std::vector<int>& raysFor) {
-    const std::vector<double> var = gatherVariance(r, analytic, B, options, raysFor, true);
+    std::vector<double> var = gatherVariance(r, analytic, B, options, raysFor, true);
+    // And the light each patch gathers through mirrors and glass, whose paths have noise of their own.
+    for (size_t j = 0; j < var.size(); ++j) var[j] += r.system.transport.incomingVariance(j, B);
     const std::vector<std::vector<size_t>> members = r.patches.byObject(scene.objects.size());
     std::vector<double> noise(members.size(), 0.0);
     ObjectTerms terms(r);

@@ -22,6 +22,7 @@ struct SpecularPaths {
         Kind kind;   // Weight: the paths' etendue from the source (m^2), their count, sum of squares; else a fate
         int target;  // patch (delivered) or object (lost)
         Rgb value;   // m^2: etendue times the share that got there
+        double square = 0;  // Delivered: sum of the paths' values squared (mean of the channels)
     };
     std::vector<size_t> start;  // per source patch, into entries
     std::vector<Entry> entries;
@@ -32,9 +33,15 @@ namespace {
 
 const Counter g_transportRays("specular.rays", "rays of the specular transport (paths' first rays and bounces)");
 
+struct Transfer {
+    int target;
+    Rgb share;
+    double square = 0;  // sum over the paths of the square of each one's share (mean of the channels)
+};
+
 struct RowResult {
-    std::vector<std::pair<int, Rgb>> delivered;  // target patch, S(i -> j)
-    std::vector<std::pair<int, Rgb>> lost;       // object, share absorbed
+    std::vector<Transfer> delivered;  // target patch, S(i -> j)
+    std::vector<Transfer> lost;       // object, share absorbed
     double unresolved = 0;
 };
 
@@ -53,15 +60,17 @@ struct Group {
     std::unordered_map<int, double> aimDensity;
 };
 
-// Sums equal (target) entries of a sorted list.
-void mergeByTarget(std::vector<std::pair<int, Rgb>>& v) {
-    std::sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+// Sorts by target and sums the entries of equal targets.
+void mergeByTarget(std::vector<Transfer>& v) {
+    std::sort(v.begin(), v.end(), [](const Transfer& a, const Transfer& b) { return a.target < b.target; });
     size_t out = 0;
     for (size_t k = 0; k < v.size(); ++k) {
-        if (out > 0 && v[out - 1].first == v[k].first)
-            v[out - 1].second += v[k].second;
-        else
+        if (out > 0 && v[out - 1].target == v[k].target) {
+            v[out - 1].share += v[k].share;
+            v[out - 1].square += v[k].square;
+        } else {
             v[out++] = v[k];
+        }
     }
     v.resize(out);
 }
@@ -219,7 +228,10 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 at.t = from.t;
                 followSpecular(tracer, at, d, Rgb::Constant(weight), settings.maxDepth, kSplit, rng, rays,
                                [&](SpecularPaths::Kind kind, int target, const Rgb& part) {
-                                   out.push_back({from.patch, {int(g), kind, target, part}});
+                                   const double mean = part.sum() / 3;
+                                   out.push_back({from.patch,
+                                                  {int(g), kind, target, part,
+                                                   kind == SpecularPaths::Delivered ? mean * mean : 0.0}});
                                });
             }
         }
@@ -254,10 +266,12 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 auto& out = summed[i];
                 for (auto e = first; e != last; ++e) {
                     if (!out.empty() && out.back().group == e->group && out.back().kind == e->kind &&
-                        out.back().target == e->target)
+                        out.back().target == e->target) {
                         out.back().value += e->value;
-                    else
+                        out.back().square += e->square;
+                    } else {
                         out.push_back(*e);
+                    }
                 }
             }
         },
@@ -387,8 +401,10 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                         continue;
                     }
                     if (s[g] <= 0 || scale[g] <= 0) continue;
-                    (e.kind == SpecularPaths::Delivered ? row.delivered : row.lost)
-                        .push_back({e.target, Rgb(scale[g] * e.value)});
+                    if (e.kind == SpecularPaths::Delivered)
+                        row.delivered.push_back({e.target, Rgb(scale[g] * e.value), scale[g] * scale[g] * e.square});
+                    else
+                        row.lost.push_back({e.target, Rgb(scale[g] * e.value)});
                 }
                 for (size_t g = 0; g < K; ++g)
                     if (s[g] > 0 && scale[g] <= 0) {
@@ -410,32 +426,37 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
     for (size_t i = 0; i < n; ++i) {
         out.outStart[i + 1] = out.outStart[i] + rows[i].delivered.size();
         out.lossStart[i + 1] = out.lossStart[i] + rows[i].lost.size();
-        for (const auto& [j, s] : rows[i].delivered) ++inCount[size_t(j) + 1];
+        for (const Transfer& t : rows[i].delivered) ++inCount[size_t(t.target) + 1];
         out.unresolvedShare += patches.area[i] * rows[i].unresolved;
         out.rowUnresolved.push_back(rows[i].unresolved);
         area += patches.area[i];
     }
     out.unresolvedShare /= std::max(area, 1e-300);
+    std::vector<double> outSquare;
     for (size_t i = 0; i < n; ++i) {
-        for (const auto& [j, s] : rows[i].delivered) {
-            out.outTarget.push_back(j);
-            out.outWeight.push_back(patches.area[i] * s / patches.area[size_t(j)]);
+        for (const Transfer& t : rows[i].delivered) {
+            const double ratio = patches.area[i] / patches.area[size_t(t.target)];
+            out.outTarget.push_back(t.target);
+            out.outWeight.push_back(ratio * t.share);
+            outSquare.push_back(ratio * ratio * t.square);
         }
-        for (const auto& [o, s] : rows[i].lost) {
-            out.lossObject.push_back(o);
-            out.lossShare.push_back(s);
+        for (const Transfer& t : rows[i].lost) {
+            out.lossObject.push_back(t.target);
+            out.lossShare.push_back(t.share);
         }
     }
     out.inStart.assign(n + 1, 0);
     for (size_t j = 0; j < n; ++j) out.inStart[j + 1] = out.inStart[j] + inCount[j + 1];
     out.inSource.resize(out.outTarget.size());
     out.inWeight.resize(out.outTarget.size());
+    out.inSquare.resize(out.outTarget.size());
     std::vector<size_t> fill(out.inStart.begin(), out.inStart.end() - 1);
     for (size_t i = 0; i < n; ++i)
         for (size_t k = out.outStart[i]; k < out.outStart[i + 1]; ++k) {
             const size_t j = size_t(out.outTarget[k]);
             out.inSource[fill[j]] = int(i);
             out.inWeight[fill[j]] = out.outWeight[k];
+            out.inSquare[fill[j]] = outSquare[k];
             ++fill[j];
         }
     out.seconds = timer.seconds();

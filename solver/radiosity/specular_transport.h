@@ -43,6 +43,7 @@ struct SpecularTransport {
     std::vector<size_t> inStart;
     std::vector<int> inSource;
     std::vector<Rgb> inWeight;
+    std::vector<double> inSquare;  // the paths' noise in inWeight: sum of each one's part squared
     std::vector<size_t> outStart;
     std::vector<int> outTarget;
     std::vector<Rgb> outWeight;
@@ -65,6 +66,17 @@ struct SpecularTransport {
     size_t groups = 0;
 
     bool empty() const { return inStart.empty(); }
+    // The variance the paths leave in incoming(j, B) (b: the mean of B's channels): a compound Poisson
+    // sum over the paths that land on j, each carrying its part of its source's light.
+    double incomingVariance(size_t j, const std::vector<Rgb>& B) const {
+        if (inStart.empty()) return 0;
+        double v = 0;
+        for (size_t k = inStart[j]; k < inStart[j + 1]; ++k) {
+            const double b = B[size_t(inSource[k])].sum() / 3;
+            v += inSquare[k] * b * b;
+        }
+        return v;
+    }
     // sum_i weight(i -> j) B_i, W/m^2.
     Rgb incoming(size_t j, const std::vector<Rgb>& B) const {
         if (inStart.empty()) return Rgb::Zero();
