@@ -412,10 +412,10 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
     }
     r.secondsFormFactors += ffTimer.seconds();
 
-    // What a row sends to mirrors and glass, the transport passes on by the row's own shares: made
-    // again whenever rows are cast again.
-    // The paths that carry it also measure each row's shares to mirrors and glass again, with the rays
-    // the row was cast with (matchSpecularShares, once F is final).
+    // What a row sends to mirrors and glass, the transport passes on by the row's shares, scaled again
+    // to the same paths whenever rows are cast again. The paths also measure each row's shares a
+    // second time, weighed against the rays the row was cast with (matchSpecularShares, once F is
+    // final).
     auto transport = [&](const std::vector<int>& raysFor) {
         const SceneTracer tracer(scene, r.patches, r.rays);
         SpecularSettings specular = options.specular;

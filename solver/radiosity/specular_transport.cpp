@@ -18,11 +18,11 @@ namespace penumbra {
 struct SpecularPaths {
     enum Kind : uint8_t { Weight = 0, Delivered = 1, Lost = 2 };
     struct Entry {
-        int group;   // the mirror or glass object the light met first (index into the groups)
-        Kind kind;   // Weight: the paths' etendue from the source (m^2), their count, sum of squares; else a fate
-        int target;  // patch (delivered) or object (lost)
-        Rgb value;   // m^2: etendue times the share that got there
-        double square = 0;  // Delivered: sum of the paths' values squared (mean of the channels)
+        int group;          // the mirror or glass object the light met first (index into the groups)
+        Kind kind;          // Weight: the paths' etendue from the source (m^2, every channel); else a fate
+        int target;         // patch (delivered) or object (lost)
+        Rgb value;          // m^2: etendue times the share that got there
+        double square = 0;  // sum of the paths' values squared (Delivered: their channels' mean)
     };
     std::vector<size_t> start;  // per source patch, into entries
     std::vector<Entry> entries;
@@ -219,7 +219,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                         pdf += aimed * a->second * from.t * from.t / std::abs(from.normal.dot(w));
                 }
                 const double weight = group.area * cosX / (kPi * double(group.paths) * pdf);
-                out.push_back({from.patch, {int(g), SpecularPaths::Weight, 0, Rgb(weight, 1, weight * weight)}});
+                out.push_back({from.patch, {int(g), SpecularPaths::Weight, 0, Rgb::Constant(weight), weight * weight}});
                 // The light's walk on from the surface, split into every branch for the first
                 // bounces (kSplit): a glass ball's reflections, 4% of the light at normal incidence,
                 // followed by Fresnel's odds were the noise of cornell-glass's ceiling pieces (the
@@ -393,7 +393,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                         if (!rowRays.empty() && f > 0) {
                             const double a = patches.area[i] * (F.exposed.empty() ? 1.0 : double(F.exposed[i]));
                             const double own = std::max(rowRays[i], 1.0) / std::max(1 - f, 1e-3);
-                            const double theirs = a * e.value[0] / e.value[2];
+                            const double theirs = a * e.value[0] / e.square;
                             f = (own * f + theirs * e.value[0] / a) / (own + theirs);
                         }
                         shared[g] = f;
