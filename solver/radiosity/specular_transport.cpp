@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <tuple>
+#include <type_traits>
 #include <unordered_map>
 
 #include "core/counters.h"
@@ -10,6 +11,7 @@
 #include "core/optics.h"
 #include "core/parallel.h"
 #include "core/progress.h"
+#include "core/sobol.h"
 #include "core/timer.h"
 
 namespace penumbra {
@@ -132,23 +134,39 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
     };
     double area = 0;
     for (const Group& g : groups) area += density(g);
-    constexpr int kSide = 32;
     constexpr int kSplit = 1;
-    constexpr int64_t kBlock = kSide * kSide;
+    constexpr int64_t kBlock = 1024;
     std::vector<std::pair<size_t, int64_t>> blocks;  // group, first path
     for (size_t g = 0; g < groups.size(); ++g) {
-        // Whole blocks: each block's points and directions are stratified over all of the object.
+        // Whole blocks of 1,024: each strategy's points in a block are an aligned run of its Sobol set, a net.
         groups[g].paths =
             kBlock *
             std::max<int64_t>(1, (int64_t(std::ceil(double(total) * density(groups[g]) / area)) + kBlock / 2) / kBlock);
         for (int64_t b = 0; b < groups[g].paths; b += kBlock) blocks.emplace_back(g, b);
     }
     const double share = std::clamp(settings.aimedShare, 0.0, 1.0);
+    // What one path found, as compact as it goes (a cornell-glass solve writes about a million):
+    // summed in double once collated.
     struct Found {
-        int source;
-        Entry entry;
+        int source, target;
+        uint16_t group;
+        uint8_t kind;
+        float value[3], square;
+    };
+    static_assert(std::is_trivial_v<Found>);
+    auto record = [](int source, size_t g, SpecularPaths::Kind kind, int target, const Rgb& v, double square) {
+        return Found{source,       target, uint16_t(g), uint8_t(kind), {float(v[0]), float(v[1]), float(v[2])},
+                     float(square)};
     };
     std::vector<std::vector<Found>> found(blocks.size());
+    const uint64_t sobolSeed = streamSeed(settings.seed, Stream::SpecularTransport);
+    // Entry k of a cumulative distribution (normalised) that u falls in, and where in it (`within`, 0-1).
+    auto pick = [](const std::vector<double>& cdf, double u, double& within) {
+        const size_t k = std::min(size_t(std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin()), cdf.size() - 1);
+        const double lo = k ? cdf[k - 1] : 0.0, hi = cdf[k];
+        within = hi > lo ? std::clamp((u - lo) / (hi - lo), 0.0, 1.0) : 0.5;
+        return k;
+    };
     std::vector<int64_t> blockRays(blocks.size(), 0);
     Progress progress("specular transport", int64_t(blocks.size()));
     parallelFor(int64_t(blocks.size()), [&](int64_t begin, int64_t end) {
@@ -160,14 +178,19 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
             const double aimed = group.aimPatch.empty() ? 0.0 : share;
             Rng rng = pairRng(settings.seed, Stream::SpecularTransport, g, uint64_t(first / kBlock));
             auto& out = found[size_t(bb)];
+            out.reserve(4 * kBlock);  // a path leaves about 4 records on cornell-glass
             int64_t& rays = blockRays[size_t(bb)];
-            std::vector<int> order;
-            shuffledStrata(order, int(kBlock), rng);
             for (int64_t k = first; k < first + kBlock; ++k) {
-                // Stratum q of the block for the point, order[q] for the direction.
-                const int q = int(k - first), dq = order[size_t(q)];
-                const double pa = (q % kSide + rng.uniform()) / kSide, pb = (q / kSide + rng.uniform()) / kSide;
-                const double da = (dq % kSide + rng.uniform()) / kSide, db = (dq / kSide + rng.uniform()) / kSide;
+                // Path k takes the aimed strategy or the cosine one by a fixed split in proportion
+                // (with the balance heuristic the same weights as a coin, without its binomial count),
+                // and the next point of that strategy's own scrambled Sobol set: its points (pa, pb)
+                // and directions (da, db) stratified together. (Strata of points per block with
+                // directions shuffled left cornell-glass's ceiling pieces at 1.05% rms, their noise
+                // the floor's light that the glass ball carries up to them.)
+                const int64_t before = int64_t(std::floor(double(k) * aimed));
+                const bool aiming = int64_t(std::floor(double(k + 1) * aimed)) > before;
+                const auto [pa, pb, da, db] =
+                    scrambledSobol(uint32_t(aiming ? before : k - before), mixSeed(sobolSeed, g, aiming));
                 // A point on the surface and its side's normal.
                 SurfaceHit at;
                 at.found = true;
@@ -180,11 +203,9 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                     at.normal = n = Vec3(r * std::cos(phi), r * std::sin(phi), z);
                     at.point = group.sphere->center + group.sphere->radius * n;
                 } else {
-                    const size_t s = group.patches[std::min(
-                        size_t(std::lower_bound(group.cdf.begin(), group.cdf.end(), pa) - group.cdf.begin()),
-                        group.patches.size() - 1)];
-                    const double u1 = rng.uniform(), u2 = rng.uniform();
-                    at.point = samplePatchPoint(patches, s, u1, u2, 0);
+                    double u1 = 0;
+                    const size_t s = group.patches[pick(group.cdf, pa, u1)];
+                    at.point = samplePatchPoint(patches, s, u1, pb, 0);
                     at.patch = int(s);
                     at.normal = patches.normal[s];
                     n = rng.uniform() < 0.5 ? at.normal : Vec3(-at.normal);
@@ -192,12 +213,10 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 // A direction out of the side: towards a point on a patch aimed at, or cosine-distributed.
                 int aim = -1;
                 Vec3 w;
-                if (aimed > 0 && rng.uniform() < aimed) {
-                    aim = group.aimPatch[std::min(
-                        size_t(std::lower_bound(group.aimCdf.begin(), group.aimCdf.end(), da) - group.aimCdf.begin()),
-                        group.aimPatch.size() - 1)];
-                    const double u1 = rng.uniform(), u2 = rng.uniform();
-                    w = (samplePatchPoint(patches, size_t(aim), u1, u2, 0) - at.point).normalized();
+                if (aiming) {
+                    double u1 = 0;
+                    aim = group.aimPatch[pick(group.aimCdf, da, u1)];
+                    w = (samplePatchPoint(patches, size_t(aim), u1, db, 0) - at.point).normalized();
                 } else {
                     w = cosineDirection(n, da, db);
                 }
@@ -219,7 +238,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                         pdf += aimed * a->second * from.t * from.t / std::abs(from.normal.dot(w));
                 }
                 const double weight = group.area * cosX / (kPi * double(group.paths) * pdf);
-                out.push_back({from.patch, {int(g), SpecularPaths::Weight, 0, Rgb::Constant(weight), weight * weight}});
+                out.push_back(record(from.patch, g, SpecularPaths::Weight, 0, Rgb::Constant(weight), weight * weight));
                 // The light's walk on from the surface, split into every branch for the first
                 // bounces (kSplit): a glass ball's reflections, 4% of the light at normal incidence,
                 // followed by Fresnel's odds were the noise of cornell-glass's ceiling pieces (the
@@ -229,57 +248,61 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 followSpecular(tracer, at, d, Rgb::Constant(weight), settings.maxDepth, kSplit, rng, rays,
                                [&](SpecularPaths::Kind kind, int target, const Rgb& part) {
                                    const double mean = part.sum() / 3;
-                                   out.push_back({from.patch,
-                                                  {int(g), kind, target, part,
-                                                   kind == SpecularPaths::Delivered ? mean * mean : 0.0}});
+                                   out.push_back(record(from.patch, g, kind, target, part,
+                                                        kind == SpecularPaths::Delivered ? mean * mean : 0.0));
                                });
             }
         }
     });
     progress.done();
 
-    // By source patch, in block order (so the sums do not depend on the threads), then summed.
+    // By source patch, in block order (so the sums do not depend on the threads), then sorted by
+    // (group, kind, target) per source (std::sort: the same order for the same input) and summed.
     auto paths = std::make_shared<SpecularPaths>();
     const size_t n = patches.size();
     std::vector<size_t> count(n + 1, 0);
     for (const auto& b : found)
         for (const Found& f : b) ++count[size_t(f.source) + 1];
     for (size_t i = 0; i < n; ++i) count[i + 1] += count[i];
-    std::vector<Entry> bySource(count[n]);
+    std::unique_ptr<Found[]> bySource(new Found[count[n]]);  // not zeroed: every one is written
     {
         std::vector<size_t> fill(count.begin(), count.end() - 1);
-        for (const auto& b : found)
-            for (const Found& f : b) bySource[fill[size_t(f.source)]++] = f.entry;
+        for (auto& b : found) {
+            for (const Found& f : b) bySource[fill[size_t(f.source)]++] = f;
+            b = {};
+        }
     }
-    found = {};
-    std::vector<std::vector<Entry>> summed(n);
+    auto key = [](const Found& f) { return std::make_tuple(f.group, f.kind, f.target); };
+    std::vector<size_t> distinct(n + 1, 0);
     parallelFor(
         int64_t(n),
         [&](int64_t begin, int64_t end) {
-            for (int64_t ii = begin; ii < end; ++ii) {
-                const size_t i = size_t(ii);
-                auto first = bySource.begin() + std::ptrdiff_t(count[i]),
-                     last = bySource.begin() + std::ptrdiff_t(count[i + 1]);
-                std::stable_sort(first, last, [](const Entry& a, const Entry& b) {
-                    return std::tie(a.group, a.kind, a.target) < std::tie(b.group, b.kind, b.target);
-                });
-                auto& out = summed[i];
-                for (auto e = first; e != last; ++e) {
-                    if (!out.empty() && out.back().group == e->group && out.back().kind == e->kind &&
-                        out.back().target == e->target) {
-                        out.back().value += e->value;
-                        out.back().square += e->square;
-                    } else {
-                        out.push_back(*e);
-                    }
+            for (int64_t i = begin; i < end; ++i) {
+                Found *first = &bySource[count[size_t(i)]], *last = &bySource[count[size_t(i) + 1]];
+                std::sort(first, last, [&](const Found& a, const Found& b) { return key(a) < key(b); });
+                for (Found* f = first; f != last; ++f) distinct[size_t(i) + 1] += f == first || key(f[-1]) != key(*f);
+            }
+        },
+        64);
+    for (size_t i = 0; i < n; ++i) distinct[i + 1] += distinct[i];
+    paths->entries.resize(distinct[n]);
+    parallelFor(
+        int64_t(n),
+        [&](int64_t begin, int64_t end) {
+            for (int64_t i = begin; i < end; ++i) {
+                size_t at = distinct[size_t(i)];
+                const Found *first = &bySource[count[size_t(i)]], *last = &bySource[count[size_t(i) + 1]];
+                for (const Found* f = first; f != last; ++f) {
+                    if (f == first || key(f[-1]) != key(*f))
+                        paths->entries[at++] = {f->group, SpecularPaths::Kind(f->kind), f->target, Rgb::Zero(), 0.0};
+                    Entry& e = paths->entries[at - 1];
+                    e.value += Rgb(f->value[0], f->value[1], f->value[2]);
+                    e.square += f->square;
                 }
             }
         },
         64);
-    paths->start.assign(n + 1, 0);
-    for (size_t i = 0; i < n; ++i) paths->start[i + 1] = paths->start[i] + summed[i].size();
-    paths->entries.reserve(paths->start[n]);
-    for (auto& s : summed) paths->entries.insert(paths->entries.end(), s.begin(), s.end());
+    paths->start = std::move(distinct);
     for (const Group& g : groups) paths->paths += g.paths;
     for (int64_t r : blockRays) paths->rays += r;
     return paths;

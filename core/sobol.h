@@ -1,0 +1,92 @@
+// Scrambled Sobol points: a 4-dimensional low-discrepancy set (Sobol 1967; direction numbers of Joe
+// and Kuo 2008 for dimensions 2-4) under Owen's nested uniform scrambling, done by hashing (Burley
+// 2020, after Laine and Karras 2011). Any aligned run of 2^m consecutive indices is a (t, m, 4)-net:
+// the first two dimensions put exactly one point in every 2^-a x 2^-(m-a) box, and the others are
+// stratified almost as well. The scramble keeps that structure and makes each point uniform on its
+// own, so an estimate from the points is unbiased; a different seed gives an independent set.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+
+namespace penumbra {
+
+namespace sobol_detail {
+
+// Direction numbers, 32 bits, of the first four Sobol dimensions.
+struct Directions {
+    uint32_t v[4][32];
+    constexpr Directions() : v{} {
+        // Dimension 1 is van der Corput's; the others from primitive polynomials of degree s with
+        // coefficients a and initial numbers m (Joe and Kuo's table).
+        constexpr int s[4] = {0, 1, 2, 3}, a[4] = {0, 0, 1, 1};
+        constexpr uint32_t m0[4][3] = {{0, 0, 0}, {1, 0, 0}, {1, 3, 0}, {1, 3, 1}};
+        for (int i = 0; i < 32; ++i) v[0][i] = 1u << (31 - i);
+        for (int d = 1; d < 4; ++d) {
+            uint32_t m[32] = {};
+            for (int i = 0; i < 32; ++i) {
+                if (i < s[d]) {
+                    m[i] = m0[d][i];
+                    continue;
+                }
+                uint32_t x = m[i - s[d]] ^ (m[i - s[d]] << s[d]);
+                for (int k = 1; k < s[d]; ++k)
+                    if ((a[d] >> (s[d] - 1 - k)) & 1) x ^= m[i - k] << k;
+                m[i] = x;
+            }
+            for (int i = 0; i < 32; ++i) v[d][i] = m[i] << (31 - i);
+        }
+    }
+};
+
+inline constexpr Directions kDirections{};
+
+inline uint32_t reverseBits(uint32_t x) {
+    x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
+    x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
+    x = ((x >> 4) & 0x0F0F0F0Fu) | ((x & 0x0F0F0F0Fu) << 4);
+    x = ((x >> 8) & 0x00FF00FFu) | ((x & 0x00FF00FFu) << 8);
+    return (x >> 16) | (x << 16);
+}
+
+// A permutation of the bits in which each bit is flipped as a hash of the bits below it and the seed.
+inline uint32_t laineKarras(uint32_t x, uint32_t seed) {
+    x += seed;
+    x ^= x * 0x6c50b47cu;
+    x ^= x * 0xb82f1e52u;
+    x ^= x * 0xc7afe638u;
+    x ^= x * 0x8d22f6e6u;
+    return x;
+}
+
+}  // namespace sobol_detail
+
+// Owen's nested uniform scramble of a 32-bit fraction: each bit flipped as a hash of the bits above it.
+inline uint32_t owenScramble(uint32_t x, uint32_t seed) {
+    using namespace sobol_detail;
+    return reverseBits(laineKarras(reverseBits(x), seed));
+}
+
+// Point `index` of the Sobol set in dimension d (0-3), unscrambled, as a 32-bit fraction.
+inline uint32_t sobolBits(uint32_t index, int d) {
+    uint32_t x = 0;
+    for (int i = 0; index; index >>= 1, ++i)
+        if (index & 1) x ^= sobol_detail::kDirections.v[d][i];
+    return x;
+}
+
+// Point `index` of the scrambled set `seed`, in [0, 1)^4. The index is scrambled too (Burley's
+// shuffle), so that each aligned run of indices is a random net of the sequence.
+inline std::array<double, 4> scrambledSobol(uint32_t index, uint64_t seed) {
+    const uint32_t s0 = uint32_t(seed), s1 = uint32_t(seed >> 32);
+    const uint32_t i = owenScramble(index, s0 * 0x9E3779B9u + 0x7F4A7C15u);
+    std::array<double, 4> p{};
+    for (int d = 0; d < 4; ++d) {
+        const uint32_t dimSeed = sobol_detail::laineKarras(s1 ^ (0x85EBCA6Bu * uint32_t(d + 1)), s0 + uint32_t(d));
+        p[std::size_t(d)] = double(owenScramble(sobolBits(i, d), dimSeed)) * (1.0 / 4294967296.0);
+    }
+    return p;
+}
+
+}  // namespace penumbra
