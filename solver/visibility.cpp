@@ -42,6 +42,7 @@ struct RayScene::Impl {
     std::string error;
     size_t patchTotal = 0, sphereTotal = 0;
     std::vector<unsigned> facetPatch;  // facet geometry's primitive -> patch index
+    std::vector<char> replaced;        // per patch: a facet of an exact sphere
     void check(const char* during) {
         if (!error.empty()) throw Error(cat(error, " (while ", during, ")"));
     }
@@ -94,6 +95,7 @@ RayScene::RayScene(const PatchSet& patches, const std::vector<RaySphere>& sphere
     std::vector<unsigned> all(patches.size());
     for (size_t i = 0; i < all.size(); ++i) all[i] = unsigned(i);
     const std::vector<char> collapse = spheres.empty() ? std::vector<char>{} : replaced;
+    impl_->replaced = collapse;
     impl_->addQuads(patches, all, collapse, kPatchGeometry, both);
     for (size_t i = 0; i < collapse.size() && i < patches.size(); ++i)
         if (collapse[i]) impl_->facetPatch.push_back(unsigned(i));
@@ -123,6 +125,14 @@ RayScene::RayScene(const PatchSet& patches, const std::vector<RaySphere>& sphere
 void* RayScene::embreeScene() const { return impl_->scene; }
 size_t RayScene::patchCount() const { return impl_->patchTotal; }
 size_t RayScene::sphereCount() const { return impl_->sphereTotal; }
+
+bool RayScene::onExactSphere(size_t patch) const {
+    return patch < impl_->replaced.size() && impl_->replaced[patch] != 0;
+}
+
+RayView RayScene::viewBetween(size_t a, size_t b) const {
+    return impl_->sphereTotal > 0 && !onExactSphere(a) && !onExactSphere(b) ? RayView::Exact : RayView::Patches;
+}
 
 RayScene::~RayScene() {
     if (impl_->scene) rtcReleaseScene(impl_->scene);

@@ -55,6 +55,12 @@ public:
                   RayView view = RayView::Patches) const;
     size_t patchCount() const;
     size_t sphereCount() const;
+    // Whether the patch is a facet of an exact sphere (seen by the Patches view only).
+    bool onExactSphere(size_t patch) const;
+    // The view in which patches a and b see each other: the exact spheres as they are (a ball's
+    // shadow on the floor is the sphere's, not its facets', which lie inside it), unless a or b is
+    // one of their facets, which the sphere itself would hide.
+    RayView viewBetween(size_t a, size_t b) const;
     // The committed Embree scene (an RTCScene), for the bench that measures Embree alone on the very
     // scene the solver traces; opaque here so that Embree's headers stay in this module.
     void* embreeScene() const;

@@ -140,6 +140,7 @@ constexpr int kEdgeRays = 16;
 Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, size_t b, int sideA, int sideB,
                            bool clipped, int base, uint64_t seed, Stream stream, Blockers* blockers) {
     Rng rng = pairRng(seed, stream, a, b);
+    const RayView view = scene.viewBetween(a, b);
     const Vec3 na = sideA * p.normal[a], nb = sideB * p.normal[b];
     const Vec3 liftA = liftDistance(p, a) * na, liftB = liftDistance(p, b) * nb;
     // The part of a in front of b's receiving face, and of b in front of a's sending face.
@@ -174,13 +175,13 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
             ++rays;
             bool open;
             if (!blockers) {
-                open = !scene.occluded(from + liftA, to + liftB);
+                open = !scene.occluded(from + liftA, to + liftB, 1e-5, view);
             } else if (std::any_of(blockers->patch.begin(), blockers->patch.end(), [&](int known) {
                            return known >= 0 && segmentCrossesPatch(p, size_t(known), from + liftA, to + liftB, 1e-5);
                        })) {
                 open = false;
             } else {
-                const int by = scene.occluder(from + liftA, to + liftB);
+                const int by = scene.occluder(from + liftA, to + liftB, 1e-5, view);
                 open = by == -1;
                 if (by >= 0) {
                     blockers->patch[size_t(blockers->next)] = by;

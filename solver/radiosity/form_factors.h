@@ -78,14 +78,14 @@ public:
                 if (r[j] != 0) f(j, r[j]);
         }
     }
-    // Multiplies every entry F(i, j) of row i, and of its mean row, by factor(j).
-    template <typename Factor>
-    void scaleRow(size_t i, const Factor& factor) {
+    // Multiplies every entry F(i, j) of row i by factor(j), and of its mean row by meanFactor(j).
+    template <typename Factor, typename MeanFactor>
+    void scaleRow(size_t i, const Factor& factor, const MeanFactor& meanFactor) {
         if (isSparse()) {
             for (uint64_t k = rowStart_[i]; k < rowStart_[i + 1]; ++k) value_[k] *= float(factor(size_t(column_[k])));
             if (i + 1 < meanStart_.size())
                 for (uint64_t k = meanStart_[i]; k < meanStart_[i + 1]; ++k)
-                    meanValue_[k] *= float(factor(size_t(meanColumn_[k])));
+                    meanValue_[k] *= float(meanFactor(size_t(meanColumn_[k])));
         } else {
             float* r = values_.data() + i * n_;
             for (size_t j = 0; j < n_; ++j) r[j] *= float(factor(j));
