@@ -278,7 +278,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
         int64_t(n),
         [&](int64_t begin, int64_t end) {
             for (int64_t i = begin; i < end; ++i) {
-                Found *first = &bySource[count[size_t(i)]], *last = &bySource[count[size_t(i) + 1]];
+                Found *first = bySource.get() + count[size_t(i)], *last = bySource.get() + count[size_t(i) + 1];
                 std::sort(first, last, [&](const Found& a, const Found& b) { return key(a) < key(b); });
                 for (Found* f = first; f != last; ++f) distinct[size_t(i) + 1] += f == first || key(f[-1]) != key(*f);
             }
@@ -291,7 +291,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
         [&](int64_t begin, int64_t end) {
             for (int64_t i = begin; i < end; ++i) {
                 size_t at = distinct[size_t(i)];
-                const Found *first = &bySource[count[size_t(i)]], *last = &bySource[count[size_t(i) + 1]];
+                const Found *first = bySource.get() + count[size_t(i)], *last = bySource.get() + count[size_t(i) + 1];
                 for (const Found* f = first; f != last; ++f) {
                     if (f == first || key(f[-1]) != key(*f))
                         paths->entries[at++] = {f->group, SpecularPaths::Kind(f->kind), f->target, Rgb::Zero(), 0.0};
