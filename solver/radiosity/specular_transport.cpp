@@ -180,6 +180,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
             auto& out = found[size_t(bb)];
             out.reserve(4 * kBlock);  // a path leaves about 4 records on cornell-glass
             int64_t& rays = blockRays[size_t(bb)];
+            const uint64_t strategySeed[2] = {mixSeed(sobolSeed, g, 0), mixSeed(sobolSeed, g, 1)};  // cosine, aimed
             for (int64_t k = first; k < first + kBlock; ++k) {
                 // Path k takes the aimed strategy or the cosine one by a fixed split in proportion
                 // (with the balance heuristic the same weights as a coin, without its binomial count),
@@ -190,7 +191,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 const int64_t before = int64_t(std::floor(double(k) * aimed));
                 const bool aiming = int64_t(std::floor(double(k + 1) * aimed)) > before;
                 const auto [pa, pb, da, db] =
-                    scrambledSobol(uint32_t(aiming ? before : k - before), mixSeed(sobolSeed, g, aiming));
+                    scrambledSobol(uint32_t(aiming ? before : k - before), strategySeed[aiming]);
                 // A point on the surface and its side's normal.
                 SurfaceHit at;
                 at.found = true;
@@ -273,6 +274,8 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
         }
     }
     auto key = [](const Found& f) { return std::make_tuple(f.group, f.kind, f.target); };
+    // Whether record f, of a source's sorted records from `first`, begins an entry of its own.
+    auto startsEntry = [&](const Found* f, const Found* first) { return f == first || key(f[-1]) != key(*f); };
     std::vector<size_t> distinct(n + 1, 0);
     parallelFor(
         int64_t(n),
@@ -280,7 +283,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
             for (int64_t i = begin; i < end; ++i) {
                 Found *first = bySource.get() + count[size_t(i)], *last = bySource.get() + count[size_t(i) + 1];
                 std::sort(first, last, [&](const Found& a, const Found& b) { return key(a) < key(b); });
-                for (Found* f = first; f != last; ++f) distinct[size_t(i) + 1] += f == first || key(f[-1]) != key(*f);
+                for (const Found* f = first; f != last; ++f) distinct[size_t(i) + 1] += startsEntry(f, first);
             }
         },
         64);
@@ -293,7 +296,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 size_t at = distinct[size_t(i)];
                 const Found *first = bySource.get() + count[size_t(i)], *last = bySource.get() + count[size_t(i) + 1];
                 for (const Found* f = first; f != last; ++f) {
-                    if (f == first || key(f[-1]) != key(*f))
+                    if (startsEntry(f, first))
                         paths->entries[at++] = {f->group, SpecularPaths::Kind(f->kind), f->target, Rgb::Zero(), 0.0};
                     Entry& e = paths->entries[at - 1];
                     e.value += Rgb(f->value[0], f->value[1], f->value[2]);
