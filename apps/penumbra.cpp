@@ -8,6 +8,7 @@
 #include <sstream>
 #include <tuple>
 
+#include "allocator.h"
 #include "bench/trade.h"
 #include "core/counters.h"
 #include "core/error.h"
@@ -128,6 +129,7 @@ void addSolveOptions(CLI::App* cmd, SolveCli& s) {
 void setupLogging(const CommonOptions& c) {
     setLogLevel(c.quiet ? LogLevel::Warning : c.verbose ? LogLevel::Debug : LogLevel::Info);
     setThreadCount(c.threads);
+    logDebug("memory: ", allocatorName());
 }
 
 int runSolve(SolveCli& s, const CommonOptions& common) {
