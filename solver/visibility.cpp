@@ -23,10 +23,9 @@ const Counter g_occlusionRays("rays.occlusion", "occlusion (shadow) rays traced,
 const Counter g_nearestRays("rays.nearest", "nearest-hit rays traced, all stages");
 const Counter g_scenesBuilt("rays.scenes_built", "ray-tracing scenes (Embree BVHs) built");
 
-// Geometry ids and the views (ray masks) that see them.
-constexpr unsigned kPatchGeometry = 0;   // every patch but those replaced by exact spheres
-constexpr unsigned kFacetGeometry = 1;   // the replaced patches: seen by the Patches view only
-constexpr unsigned kSphereGeometry = 2;  // the exact spheres: seen by the Exact view only
+// Geometry ids in the views' scenes.
+constexpr unsigned kPatchGeometry = 0;   // the patches (in the Exact view's, all but the spheres' facets)
+constexpr unsigned kSphereGeometry = 1;  // the exact spheres (the Exact view's only)
 }  // namespace
 
 uint64_t raysCast() { return g_occlusionRays.value() + g_nearestRays.value(); }
@@ -38,18 +37,29 @@ void prepareTracingThread() {
 
 struct RayScene::Impl {
     RTCDevice device = nullptr;
-    RTCScene scene = nullptr;
+    RTCScene scene = nullptr;  // the Patches view: every patch, primitive id = patch index
+    // The Exact view, where there are exact spheres: the other patches (exactPatch: primitive ->
+    // patch) and the spheres. Its own scene, not the same one told apart by ray masks: a ball's
+    // facets lie just inside its sphere, where every light path through the ball starts or ends,
+    // and masked primitives still cost their traversal (cornell-glass's paths: 852 facets).
+    RTCScene exact = nullptr;
+    std::vector<unsigned> exactPatch;
     std::string error;
     size_t patchTotal = 0, sphereTotal = 0;
-    std::vector<unsigned> facetPatch;  // facet geometry's primitive -> patch index
-    std::vector<char> replaced;        // per patch: a facet of an exact sphere
+    std::vector<char> replaced;  // per patch: a facet of an exact sphere
     void check(const char* during) {
         if (!error.empty()) throw Error(cat(error, " (while ", during, ")"));
     }
-    // Quads of `patches` into a new geometry seen by `mask`; ids[k] is the patch of primitive k, and
-    // patches with collapse[i] != 0 become points, which no ray hits (primitive id == patch index).
-    void addQuads(const PatchSet& patches, const std::vector<unsigned>& ids, const std::vector<char>& collapse,
-                  unsigned id, unsigned mask) {
+    RTCScene newScene() {
+        RTCScene s = rtcNewScene(device);
+        rtcSetSceneBuildQuality(s, RTC_BUILD_QUALITY_HIGH);
+        // Watertight edges: a ray through the seam of two touching patches must not slip between
+        // them (the classic light leak along wall-floor and wall-ceiling joints).
+        rtcSetSceneFlags(s, RTC_SCENE_FLAG_ROBUST);
+        return s;
+    }
+    // The quads of patches ids[k] (primitive k) into a new geometry of `into`.
+    void addQuads(RTCScene into, const PatchSet& patches, const std::vector<unsigned>& ids, unsigned id) {
         RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_QUAD);
         const size_t n = ids.size();
         auto* vb = static_cast<float*>(
@@ -57,21 +67,19 @@ struct RayScene::Impl {
         auto* ib = static_cast<unsigned*>(
             rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned), n));
         for (size_t q = 0; q < n; ++q) {
-            const size_t i = ids[q];
-            const bool point = i < collapse.size() && collapse[i];
             for (size_t k = 0; k < 4; ++k) {
-                const Vec3& p = patches.corners[i][point ? 0 : k];
+                const Vec3& p = patches.corners[ids[q]][k];
                 vb[3 * (4 * q + k) + 0] = float(p.x());
                 vb[3 * (4 * q + k) + 1] = float(p.y());
                 vb[3 * (4 * q + k) + 2] = float(p.z());
                 ib[4 * q + k] = unsigned(4 * q + k);
             }
         }
-        rtcSetGeometryMask(geom, mask);
         rtcCommitGeometry(geom);
-        rtcAttachGeometryByID(scene, geom, id);
+        rtcAttachGeometryByID(into, geom, id);
         rtcReleaseGeometry(geom);
     }
+    RTCScene sceneOf(RayView view) const { return view == RayView::Exact && exact ? exact : scene; }
 };
 
 RayScene::RayScene(const PatchSet& patches) : RayScene(patches, {}, {}) {}
@@ -83,25 +91,18 @@ RayScene::RayScene(const PatchSet& patches, const std::vector<RaySphere>& sphere
     if (!impl_->device)
         throw Error(cat("Embree: cannot create a device (error ", int(rtcGetDeviceError(nullptr)), ")"));
     rtcSetDeviceErrorFunction(impl_->device, embreeError, &impl_->error);
-    if (!spheres.empty() && !rtcGetDeviceProperty(impl_->device, RTC_DEVICE_PROPERTY_RAY_MASK_SUPPORTED))
-        throw Error("Embree was built without ray masks, which the exact spheres of mirrors and glass need");
-    impl_->scene = rtcNewScene(impl_->device);
-    rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
-    // Watertight edges: a ray through the seam of two touching patches must not slip between them
-    // (the classic light leak along wall-floor and wall-ceiling joints).
-    rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
-    const unsigned both = unsigned(RayView::Patches) | unsigned(RayView::Exact);
     impl_->patchTotal = patches.size();
     std::vector<unsigned> all(patches.size());
     for (size_t i = 0; i < all.size(); ++i) all[i] = unsigned(i);
-    const std::vector<char> collapse = spheres.empty() ? std::vector<char>{} : replaced;
-    impl_->replaced = collapse;
-    impl_->addQuads(patches, all, collapse, kPatchGeometry, both);
-    for (size_t i = 0; i < collapse.size() && i < patches.size(); ++i)
-        if (collapse[i]) impl_->facetPatch.push_back(unsigned(i));
-    if (!impl_->facetPatch.empty())
-        impl_->addQuads(patches, impl_->facetPatch, {}, kFacetGeometry, unsigned(RayView::Patches));
+    impl_->scene = impl_->newScene();
+    impl_->addQuads(impl_->scene, patches, all, kPatchGeometry);
+    rtcCommitScene(impl_->scene);
     if (!spheres.empty()) {
+        impl_->replaced = replaced;
+        for (size_t i = 0; i < patches.size(); ++i)
+            if (i >= replaced.size() || !replaced[i]) impl_->exactPatch.push_back(unsigned(i));
+        impl_->exact = impl_->newScene();
+        impl_->addQuads(impl_->exact, patches, impl_->exactPatch, kPatchGeometry);
         RTCGeometry points = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
         auto* pb = static_cast<float*>(rtcSetNewGeometryBuffer(points, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
                                                                4 * sizeof(float), spheres.size()));
@@ -111,18 +112,17 @@ RayScene::RayScene(const PatchSet& patches, const std::vector<RaySphere>& sphere
             pb[4 * i + 2] = float(spheres[i].center.z());
             pb[4 * i + 3] = float(spheres[i].radius);
         }
-        rtcSetGeometryMask(points, unsigned(RayView::Exact));
         rtcCommitGeometry(points);
-        rtcAttachGeometryByID(impl_->scene, points, kSphereGeometry);
+        rtcAttachGeometryByID(impl_->exact, points, kSphereGeometry);
         rtcReleaseGeometry(points);
         impl_->sphereTotal = spheres.size();
+        rtcCommitScene(impl_->exact);
     }
-    rtcCommitScene(impl_->scene);
     impl_->check("building the ray-tracing scene");
     g_scenesBuilt.add();
 }
 
-void* RayScene::embreeScene() const { return impl_->scene; }
+void* RayScene::embreeScene(RayView view) const { return impl_->sceneOf(view); }
 size_t RayScene::patchCount() const { return impl_->patchTotal; }
 size_t RayScene::sphereCount() const { return impl_->sphereTotal; }
 
@@ -135,6 +135,7 @@ RayView RayScene::viewBetween(size_t a, size_t b) const {
 }
 
 RayScene::~RayScene() {
+    if (impl_->exact) rtcReleaseScene(impl_->exact);
     if (impl_->scene) rtcReleaseScene(impl_->scene);
     if (impl_->device) rtcReleaseDevice(impl_->device);
 }
@@ -153,10 +154,10 @@ bool RayScene::occluded(const Vec3& from, const Vec3& to, double trim, RayView v
     ray.tnear = float(trim);
     ray.tfar = float(1 - trim);
     ray.time = 0;
-    ray.mask = unsigned(view);
+    ray.mask = ~0u;
     ray.id = 0;
     ray.flags = 0;
-    rtcOccluded1(impl_->scene, &context, &ray);
+    rtcOccluded1(impl_->sceneOf(view), &context, &ray);
     g_occlusionRays.add();
     return ray.tfar < 0;
 }
@@ -179,19 +180,18 @@ Hit RayScene::intersect(const Vec3& origin, const Vec3& dir, double tMin, double
     rh.ray.tnear = float(tMin);
     rh.ray.tfar = float(std::min(tMax, 3e38));
     rh.ray.time = 0;
-    rh.ray.mask = unsigned(view);
+    rh.ray.mask = ~0u;
     rh.ray.id = 0;
     rh.ray.flags = 0;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(impl_->scene, &context, &rh);
+    const bool exact = view == RayView::Exact && impl_->exact;
+    rtcIntersect1(exact ? impl_->exact : impl_->scene, &context, &rh);
     g_nearestRays.add();
     Hit hit;
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
     if (rh.hit.geomID == kPatchGeometry)
-        hit.patch = int(rh.hit.primID);
-    else if (rh.hit.geomID == kFacetGeometry)
-        hit.patch = int(impl_->facetPatch[rh.hit.primID]);
+        hit.patch = int(exact ? impl_->exactPatch[rh.hit.primID] : rh.hit.primID);
     else
         hit.sphere = int(rh.hit.primID);
     hit.t = rh.ray.tfar;

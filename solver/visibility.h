@@ -2,8 +2,8 @@
 // committed once and shared by everything that traces it (form factors, specular transport, vertex
 // gather, photons, integrators): quads (triangles repeat their last corner), both faces occluding,
 // and optionally exact spheres standing in for the patches of mirror and glass balls, whose facets
-// would show in reflections and scatter caustics. Each query names the view it wants (RayView), told
-// apart by Embree's ray masks. Embree errors become Error exceptions with context.
+// would show in reflections and scatter caustics. Each query names the view it wants (RayView); each
+// view is its own Embree scene. Embree errors become Error exceptions with context.
 #pragma once
 
 #include <cstdint>
@@ -61,9 +61,9 @@ public:
     // shadow on the floor is the sphere's, not its facets', which lie inside it), unless a or b is
     // one of their facets, which the sphere itself would hide.
     RayView viewBetween(size_t a, size_t b) const;
-    // The committed Embree scene (an RTCScene), for the bench that measures Embree alone on the very
-    // scene the solver traces; opaque here so that Embree's headers stay in this module.
-    void* embreeScene() const;
+    // The committed Embree scene of a view (an RTCScene), for the bench that measures Embree alone on
+    // the very scene the solver traces; opaque here so that Embree's headers stay in this module.
+    void* embreeScene(RayView view = RayView::Patches) const;
 
 private:
     struct Impl;
