@@ -158,7 +158,15 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
         return Found{source,       target, uint16_t(g), uint8_t(kind), {float(v[0]), float(v[1]), float(v[2])},
                      float(square)};
     };
+    // Each block's records, sorted while still in cache into buckets of 2^shift source patches
+    // (bucketStart per block); a bucket's records are collated in cache afterwards. (A scatter of
+    // every record to its source across the whole buffer took 30-55 ms of cornell-glass's 480k.)
+    const size_t patchCount = patches.size();
+    int shift = 0;
+    while ((patchCount >> shift) > 64) ++shift;
+    const size_t buckets = (patchCount >> shift) + 1;
     std::vector<std::vector<Found>> found(blocks.size());
+    std::vector<uint32_t> bucketStart(blocks.size() * (buckets + 1), 0);
     const uint64_t sobolSeed = streamSeed(settings.seed, Stream::SpecularTransport);
     // Entry k of a cumulative distribution (normalised) that u falls in, and where in it (`within`, 0-1).
     auto pick = [](const std::vector<double>& cdf, double u, double& within) {
@@ -168,17 +176,19 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
         return k;
     };
     std::vector<int64_t> blockRays(blocks.size(), 0);
+    Timer traceTimer;
     Progress progress("specular transport", int64_t(blocks.size()));
     parallelFor(int64_t(blocks.size()), [&](int64_t begin, int64_t end) {
         prepareTracingThread();
+        std::vector<Found> out;
+        out.reserve(4 * kBlock);  // a path leaves about 1.6 records on cornell-glass
         for (int64_t bb = begin; bb < end; ++bb, progress.update()) {
             const auto [g, first] = blocks[size_t(bb)];
             const Group& group = groups[g];
             const Material& material = scene.materialOf(scene.objects[size_t(group.object)]);
             const double aimed = group.aimPatch.empty() ? 0.0 : share;
             Rng rng = pairRng(settings.seed, Stream::SpecularTransport, g, uint64_t(first / kBlock));
-            auto& out = found[size_t(bb)];
-            out.reserve(4 * kBlock);  // a path leaves about 4 records on cornell-glass
+            out.clear();
             int64_t& rays = blockRays[size_t(bb)];
             const uint64_t strategySeed[2] = {mixSeed(sobolSeed, g, 0), mixSeed(sobolSeed, g, 1)};  // cosine, aimed
             for (int64_t k = first; k < first + kBlock; ++k) {
@@ -253,61 +263,84 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                                                         kind == SpecularPaths::Delivered ? mean * mean : 0.0));
                                });
             }
+            // The block's records by bucket, stable (in path order within each).
+            uint32_t* at = &bucketStart[size_t(bb) * (buckets + 1)];
+            for (const Found& f : out) ++at[(size_t(f.source) >> shift) + 1];
+            for (size_t b = 0; b < buckets; ++b) at[b + 1] += at[b];
+            std::vector<uint32_t> fill(at, at + buckets);
+            std::vector<Found>& sorted = found[size_t(bb)];
+            sorted.resize(out.size());
+            for (const Found& f : out) sorted[fill[size_t(f.source) >> shift]++] = f;
         }
     });
     progress.done();
+    const double traceSeconds = traceTimer.seconds();
+    Timer collateTimer;
 
     // By source patch, in block order (so the sums do not depend on the threads), then sorted by
-    // (group, kind, target) per source (std::sort: the same order for the same input) and summed.
+    // (group, kind, target) per source (std::sort: the same order for the same input) and summed;
+    // a bucket of sources at a time, each bucket's entries then copied into place.
     auto paths = std::make_shared<SpecularPaths>();
-    const size_t n = patches.size();
-    std::vector<size_t> count(n + 1, 0);
-    for (const auto& b : found)
-        for (const Found& f : b) ++count[size_t(f.source) + 1];
-    for (size_t i = 0; i < n; ++i) count[i + 1] += count[i];
-    std::unique_ptr<Found[]> bySource(new Found[count[n]]);  // not zeroed: every one is written
-    {
-        std::vector<size_t> fill(count.begin(), count.end() - 1);
-        for (auto& b : found) {
-            for (const Found& f : b) bySource[fill[size_t(f.source)]++] = f;
-            b = {};
-        }
-    }
     auto key = [](const Found& f) { return std::make_tuple(f.group, f.kind, f.target); };
-    // Whether record f, of a source's sorted records from `first`, begins an entry of its own.
-    auto startsEntry = [&](const Found* f, const Found* first) { return f == first || key(f[-1]) != key(*f); };
-    std::vector<size_t> distinct(n + 1, 0);
-    parallelFor(
-        int64_t(n),
-        [&](int64_t begin, int64_t end) {
-            for (int64_t i = begin; i < end; ++i) {
-                Found *first = bySource.get() + count[size_t(i)], *last = bySource.get() + count[size_t(i) + 1];
-                std::sort(first, last, [&](const Found& a, const Found& b) { return key(a) < key(b); });
-                for (const Found* f = first; f != last; ++f) distinct[size_t(i) + 1] += startsEntry(f, first);
+    std::vector<size_t> distinct(patchCount + 1, 0);
+    std::vector<std::vector<Entry>> bucketEntries(buckets);
+    int64_t records = 0;
+    for (size_t bb = 0; bb < blocks.size(); ++bb) records += int64_t(found[bb].size());
+    parallelFor(int64_t(buckets), [&](int64_t begin, int64_t end) {
+        std::vector<Found> local;
+        std::vector<size_t> count;
+        for (int64_t b = begin; b < end; ++b) {
+            const size_t first = size_t(b) << shift,
+                         sources = std::min(patchCount, first + (size_t(1) << shift)) - first;
+            if (first >= patchCount) continue;
+            count.assign(sources + 1, 0);
+            size_t held = 0;
+            for (size_t bb = 0; bb < blocks.size(); ++bb) {
+                const uint32_t* at = &bucketStart[bb * (buckets + 1) + size_t(b)];
+                for (uint32_t r = at[0]; r < at[1]; ++r) ++count[size_t(found[bb][r].source) - first + 1];
+                held += at[1] - at[0];
             }
-        },
-        64);
-    for (size_t i = 0; i < n; ++i) distinct[i + 1] += distinct[i];
-    paths->entries.resize(distinct[n]);
-    parallelFor(
-        int64_t(n),
-        [&](int64_t begin, int64_t end) {
-            for (int64_t i = begin; i < end; ++i) {
-                size_t at = distinct[size_t(i)];
-                const Found *first = bySource.get() + count[size_t(i)], *last = bySource.get() + count[size_t(i) + 1];
-                for (const Found* f = first; f != last; ++f) {
-                    if (startsEntry(f, first))
-                        paths->entries[at++] = {f->group, SpecularPaths::Kind(f->kind), f->target, Rgb::Zero(), 0.0};
-                    Entry& e = paths->entries[at - 1];
+            for (size_t i = 0; i < sources; ++i) count[i + 1] += count[i];
+            local.resize(held);
+            std::vector<size_t> fill(count.begin(), count.end() - 1);
+            for (size_t bb = 0; bb < blocks.size(); ++bb) {
+                const uint32_t* at = &bucketStart[bb * (buckets + 1) + size_t(b)];
+                for (uint32_t r = at[0]; r < at[1]; ++r) {
+                    const Found& f = found[bb][r];
+                    local[fill[size_t(f.source) - first]++] = f;
+                }
+            }
+            std::vector<Entry>& entries = bucketEntries[size_t(b)];
+            for (size_t i = 0; i < sources; ++i) {
+                Found *from = local.data() + count[i], *to = local.data() + count[i + 1];
+                std::sort(from, to, [&](const Found& x, const Found& y) { return key(x) < key(y); });
+                for (const Found* f = from; f != to; ++f) {
+                    if (f == from || key(f[-1]) != key(*f)) {
+                        entries.push_back({f->group, SpecularPaths::Kind(f->kind), f->target, Rgb::Zero(), 0.0});
+                        ++distinct[first + i + 1];
+                    }
+                    Entry& e = entries.back();
                     e.value += Rgb(f->value[0], f->value[1], f->value[2]);
                     e.square += f->square;
                 }
             }
-        },
-        64);
+        }
+    });
+    found = {};
+    for (size_t i = 0; i < patchCount; ++i) distinct[i + 1] += distinct[i];
+    paths->entries.resize(distinct[patchCount]);
+    parallelFor(int64_t(buckets), [&](int64_t begin, int64_t end) {
+        for (int64_t b = begin; b < end; ++b) {
+            const size_t first = std::min(patchCount, size_t(b) << shift);
+            std::copy(bucketEntries[size_t(b)].begin(), bucketEntries[size_t(b)].end(),
+                      paths->entries.begin() + ptrdiff_t(distinct[first]));
+        }
+    });
     paths->start = std::move(distinct);
     for (const Group& g : groups) paths->paths += g.paths;
     for (int64_t r : blockRays) paths->rays += r;
+    logDebug("specular transport: paths traced in ", traceSeconds, " s, collated in ", collateTimer.seconds(), " s (",
+             records, " records, ", paths->entries.size(), " entries)");
     return paths;
 }
 
@@ -447,6 +480,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
         },
         64);
 
+    const double rowSeconds = timer.seconds();
     // Compressed rows by source (outgoing, losses), then by target (incoming).
     out.outStart.assign(n + 1, 0);
     out.lossStart.assign(n + 1, 0);
@@ -489,6 +523,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
             ++fill[j];
         }
     out.seconds = timer.seconds();
+    logDebug("specular transport: rows in ", rowSeconds, " s, compressed in ", out.seconds - rowSeconds, " s");
     if (previous && previous->traced) {
         logInfo("specular transport: the same ", paths.paths, " paths scaled to the rows cast again in ", out.seconds,
                 " s");
