@@ -41,6 +41,45 @@ ExactSpheres findExactSpheres(const Scene& scene) {
     return out;
 }
 
+// The point of triangle (a, b, c) nearest p (Ericson, Real-Time Collision Detection, 5.1.5).
+Vec3 closestOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+    const Vec3 ab = b - a, ac = c - a, ap = p - a;
+    const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+    if (d1 <= 0 && d2 <= 0) return a;
+    const Vec3 bp = p - b;
+    const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+    if (d3 >= 0 && d4 <= d3) return b;
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + d1 / (d1 - d3) * ab;
+    const Vec3 cp = p - c;
+    const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+    if (d6 >= 0 && d5 <= d6) return c;
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + d2 / (d2 - d6) * ac;
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) return b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b);
+    const double denom = 1 / (va + vb + vc);
+    return a + ab * (vb * denom) + ac * (vc * denom);
+}
+
+// Whether nothing but the sphere itself lies inside exact sphere k: no patch the Exact view traces
+// (the quads as Embree splits them, (c0, c1, c3) and (c2, c3, c1)) and no other exact sphere
+// reaches into it. A ray from inside such a sphere meets only the sphere.
+bool hollowSphere(const PatchSet& patches, const ExactSpheres& exact, size_t k) {
+    const RaySphere& s = exact.spheres[k];
+    const double inside = s.radius * (1 - 1e-9);
+    for (size_t j = 0; j < exact.spheres.size(); ++j)
+        if (j != k && (exact.spheres[j].center - s.center).norm() < inside + exact.spheres[j].radius) return false;
+    for (size_t i = 0; i < patches.size(); ++i) {
+        if (exact.objectSphere[size_t(patches.object[i])] >= 0) continue;  // a facet: not in the Exact view
+        const auto& c = patches.corners[i];
+        if ((closestOnTriangle(s.center, c[0], c[1], c[3]) - s.center).norm() < inside ||
+            (closestOnTriangle(s.center, c[2], c[3], c[1]) - s.center).norm() < inside)
+            return false;
+    }
+    return true;
+}
+
 }  // namespace
 
 std::shared_ptr<const RayScene> buildRayScene(const Scene& scene, const PatchSet& patches) {
@@ -120,6 +159,7 @@ Vec3 PatchPointSampler::operator()(double u1, double u2) const {
 SceneTracer::SceneTracer(const Scene& scene, const PatchSet& patches, std::shared_ptr<const RayScene> rays)
     : scene_(scene), patches_(patches), rays_(rays ? std::move(rays) : buildRayScene(scene, patches)) {
     ExactSpheres exact = findExactSpheres(scene);
+    for (size_t k = 0; k < exact.spheres.size(); ++k) hollow_.push_back(hollowSphere(patches, exact, k));
     spheres_ = std::move(exact.spheres);
     sphereObject_ = std::move(exact.sphereObject);
     PENUMBRA_CHECK_OP(rays_->patchCount(), ==, patches.size());
@@ -150,6 +190,26 @@ SceneTracer::SceneTracer(const Scene& scene, const PatchSet& patches, std::share
 }
 
 SurfaceHit SceneTracer::trace(const Vec3& origin, const Vec3& dir, double tMin) const {
+    // From inside a hollow exact sphere (light refracted into a glass ball, or reflected inside it)
+    // the ray meets the sphere from within: solved here, not traced.
+    for (size_t k = 0; k < spheres_.size(); ++k) {
+        if (!hollow_[k]) continue;
+        const RaySphere& sphere = spheres_[k];
+        const Vec3 d = origin - sphere.center;
+        const double c = d.squaredNorm() - sphere.radius * sphere.radius;
+        if (!(c < 0)) continue;
+        const double b = d.dot(dir);
+        const double t = -b + std::sqrt(std::max(0.0, b * b - c));
+        if (!(t > tMin)) break;
+        SurfaceHit s;
+        s.found = true;
+        s.t = t;
+        s.object = sphereObject_[k];
+        s.normal = (origin + t * dir - sphere.center).normalized();
+        s.point = sphere.center + sphere.radius * s.normal;
+        s.material = &scene_.materialOf(scene_.objects[size_t(s.object)]);
+        return s;
+    }
     const Hit h = rays_->intersect(origin, dir, tMin, 1e30, RayView::Exact);
     SurfaceHit s;
     if (!h.found()) return s;

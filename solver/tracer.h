@@ -100,6 +100,7 @@ private:
     std::shared_ptr<const RayScene> rays_;
     std::vector<RaySphere> spheres_;
     std::vector<int> sphereObject_;
+    std::vector<char> hollow_;  // per sphere: nothing else inside it (a ray from within is solved, not traced)
     std::vector<int> emitterPatch_;
     std::vector<double> emitterCdf_;  // cumulative, normalised
     std::vector<double> emitterPdf_;  // per patch, per m^2

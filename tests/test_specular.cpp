@@ -319,6 +319,42 @@ TEST(RayScene, OneSceneServesThePatchesAndTheExactSpheres) {
     EXPECT_NEAR(tracer.trace(origin, dir).t, 0.15, 1e-6);
 }
 
+TEST(RayScene, ARayFromInsideAHollowBallMeetsItsSphere) {
+    // From inside the ball the tracer solves the sphere instead of tracing it: where it leaves must
+    // be where Embree's exact sphere says, the sphere's own point (within float rounding) and normal.
+    const Scene scene = test::sceneFromJson(test::furnaceCube(
+        0.5, R"({"type": "dielectric", "ior": 1.5})", false,
+        R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [0.5, 0.5, 0.5], "radius": 0.25})"));
+    const PatchSet patches = meshScene(scene, {600, 0});
+    const std::shared_ptr<const RayScene> rays = buildRayScene(scene, patches);
+    const SceneTracer tracer(scene, patches, rays);
+    Rng rng(7);
+    for (int k = 0; k < 100; ++k) {
+        const Vec3 origin =
+            Vec3(0.5, 0.5, 0.5) + 0.2 * Vec3(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5);
+        const Vec3 dir = Vec3(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5).normalized();
+        const SurfaceHit s = tracer.trace(origin, dir);
+        const Hit h = rays->intersect(origin, dir, 0, 1e30, RayView::Exact);
+        ASSERT_TRUE(s.found);
+        ASSERT_GE(h.sphere, 0);
+        EXPECT_EQ(scene.objects[size_t(s.object)].name, "ball");
+        EXPECT_NEAR(s.t, h.t, 1e-5);
+        EXPECT_NEAR((s.point - Vec3(0.5, 0.5, 0.5)).norm(), 0.25, 1e-12);
+        EXPECT_NEAR(s.normal.dot((s.point - Vec3(0.5, 0.5, 0.5)) / 0.25), 1.0, 1e-12);
+        EXPECT_FALSE(s.frontFacing(dir)) << "a ray from inside meets the back of the surface";
+    }
+    // A ball that a wall cuts into is not hollow: the wall inside it is found, by tracing.
+    const Scene cut = test::sceneFromJson(test::furnaceCube(
+        0.5, R"({"type": "dielectric", "ior": 1.5})", false,
+        R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [0.9, 0.5, 0.5], "radius": 0.25})"));
+    const PatchSet cutPatches = meshScene(cut, {600, 0});
+    const SceneTracer cutTracer(cut, cutPatches);
+    const SurfaceHit wall = cutTracer.trace(Vec3(0.9, 0.5, 0.5), Vec3(1, 0, 0));
+    ASSERT_TRUE(wall.found);
+    EXPECT_GE(wall.patch, 0) << "the wall at x = 1, inside the ball";
+    EXPECT_NEAR(wall.t, 0.1, 1e-6);
+}
+
 TEST(RayScene, OneSolveAndItsViewsBuildOneScenePerMesh) {
     const Scene scene = test::sceneFromJson(test::furnaceCube(
         0.5, R"({"type": "dielectric", "ior": 1.5})", false,
