@@ -59,7 +59,16 @@ struct Group {
     // and each patch's chance per m^2 of being aimed at (0 where it is not).
     std::vector<int> aimPatch;
     std::vector<double> aimCdf;
-    std::unordered_map<int, double> aimDensity;
+    // On a sphere an aimed path starts in the cap that sees the aimed patch's centroid (pole, cos of
+    // its angular radius): the rest of the sphere sees little or none of the patch.
+    struct Aim {
+        double density = 0;
+        Vec3 pole = Vec3::UnitZ();
+        double cosCap = 0;
+        // How much denser than uniform over the sphere aimed points are at normal n (0 outside the cap).
+        double capFactor(const Vec3& n) const { return n.dot(pole) >= cosCap ? 2 / (1 - cosCap) : 0.0; }
+    };
+    std::unordered_map<int, Aim> aimDensity;
 };
 
 // Sorts by target and sums the entries of equal targets.
@@ -175,6 +184,12 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
         within = hi > lo ? std::clamp((u - lo) / (hi - lo), 0.0, 1.0) : 0.5;
         return k;
     };
+    // A direction given about a pole, in the world.
+    auto toWorld = [](const Vec3& local, const Vec3& pole) {
+        Vec3 t, b;
+        orthonormalBasis(pole, t, b);
+        return Vec3(local.x() * t + local.y() * b + local.z() * pole);
+    };
     std::vector<int64_t> blockRays(blocks.size(), 0);
     Timer traceTimer;
     Progress progress("specular transport", int64_t(blocks.size()));
@@ -202,16 +217,26 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 const bool aiming = int64_t(std::floor(double(k + 1) * aimed)) > before;
                 const auto [pa, pb, da, db] =
                     scrambledSobol(uint32_t(aiming ? before : k - before), strategySeed[aiming]);
-                // A point on the surface and its side's normal.
+                // A point on the surface and its side's normal; for an aimed path the patch aimed at
+                // first, and on a sphere a point of the cap that sees it.
+                int aim = -1;
+                double within = 0;
+                const Group::Aim* aimAt = nullptr;
+                if (aiming) {
+                    aim = group.aimPatch[pick(group.aimCdf, da, within)];
+                    aimAt = &group.aimDensity.at(aim);
+                }
                 SurfaceHit at;
                 at.found = true;
                 at.object = group.object;
                 at.material = &material;
                 Vec3 n;
                 if (group.sphere) {
-                    const double z = 1 - 2 * pa, phi = 2 * kPi * pb;
+                    const double z = aimAt ? 1 - pa * (1 - aimAt->cosCap) : 1 - 2 * pa, phi = 2 * kPi * pb;
                     const double r = std::sqrt(std::max(0.0, 1 - z * z));
-                    at.normal = n = Vec3(r * std::cos(phi), r * std::sin(phi), z);
+                    const Vec3 local(r * std::cos(phi), r * std::sin(phi), z);
+                    n = aimAt ? toWorld(local, aimAt->pole) : local;
+                    at.normal = n;
                     at.point = group.sphere->center + group.sphere->radius * n;
                 } else {
                     double u1 = 0;
@@ -221,16 +246,12 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                     at.normal = patches.normal[s];
                     n = rng.uniform() < 0.5 ? at.normal : Vec3(-at.normal);
                 }
-                // A direction out of the side: towards a point on a patch aimed at, or cosine-distributed.
-                int aim = -1;
+                // A direction out of the side: towards a point on the patch aimed at, or cosine-distributed.
                 Vec3 w;
-                if (aiming) {
-                    double u1 = 0;
-                    aim = group.aimPatch[pick(group.aimCdf, da, u1)];
-                    w = (samplePatchPoint(patches, size_t(aim), u1, db, 0) - at.point).normalized();
-                } else {
+                if (aiming)
+                    w = (samplePatchPoint(patches, size_t(aim), within, db, 0) - at.point).normalized();
+                else
                     w = cosineDirection(n, da, db);
-                }
                 const double cosX = n.dot(w);
                 if (!(cosX > 0)) continue;
                 const SurfaceHit from = tracer.trace(at.point + tracer.epsilon() * n, w);
@@ -246,7 +267,8 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 if (aimed > 0) {
                     const auto a = group.aimDensity.find(from.patch);
                     if (a != group.aimDensity.end())
-                        pdf += aimed * a->second * from.t * from.t / std::abs(from.normal.dot(w));
+                        pdf += aimed * (group.sphere ? a->second.capFactor(n) : 1.0) * a->second.density * from.t *
+                               from.t / std::abs(from.normal.dot(w));
                 }
                 const double weight = group.area * cosX / (kPi * double(group.paths) * pdf);
                 out.push_back(record(from.patch, g, SpecularPaths::Weight, 0, Rgb::Constant(weight), weight * weight));
@@ -395,29 +417,78 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
     if (previous && previous->traced) {
         out.traced = previous->traced;
     } else {
-        // The lamps aimed at by the light each sends into the object: its emission times its area
-        // and its share of the object. (Aiming by a first solve's radiosity instead, or half by
-        // each, measured no better on cornell-glass: 2026-12-05.)
-        for (size_t g = 0; g < K; ++g) {
-            Group& aim = groups[g];
-            double total = 0;
-            for (size_t i = 0; i < n; ++i) {
-                const double power = luminance(scene.materialOf(scene.objects[size_t(patches.object[i])]).emission) *
-                                     patches.area[i] * share[i * K + g];
-                if (!(power > 0)) continue;
-                total += power;
-                aim.aimPatch.push_back(int(i));
-                aim.aimCdf.push_back(total);
-            }
-            for (size_t k = 0; k < aim.aimPatch.size(); ++k) {
-                const double before = k ? aim.aimCdf[k - 1] : 0;
-                const size_t i = size_t(aim.aimPatch[k]);
-                aim.aimDensity[int(i)] = (aim.aimCdf[k] - before) / total / patches.area[i];
-            }
-            for (double& c : aim.aimCdf) c /= total;
+        // The patches aimed at, by the light each sends into the object: a lamp's, its emission
+        // times its area and its share of the object (in W); then also the patches the balls light
+        // by a caustic, whose light through them is as sharp: a glass ball images the caustic at its
+        // foot onto the ceiling, and on cornell-glass nine floor patches of that caustic, reached by
+        // cosine paths alone, held 68% of the paths' noise in ceiling_right (20% of its light). Their
+        // light is measured by a first, small set of paths (kCausticShare of them, then discarded).
+        // (Aiming by a first solve's radiosity instead, or half by each, measured no better on
+        // cornell-glass: 2026-12-05.)
+        std::vector<double> power(n * K, 0.0);
+        for (size_t i = 0; i < n; ++i) {
+            const double emitted =
+                kPi * luminance(scene.materialOf(scene.objects[size_t(patches.object[i])]).emission) * patches.area[i];
+            for (size_t g = 0; g < K; ++g) power[i * K + g] = emitted * share[i * K + g];
         }
-        out.traced = tracePaths(scene, patches, tracer, settings, groups,
-                                std::max<int64_t>(1, seeing) * std::max(1, settings.pathsPerPatch));
+        auto aimBy = [&](const std::vector<double>& by) {
+            for (size_t g = 0; g < K; ++g) {
+                Group& aim = groups[g];
+                aim.aimPatch.clear();
+                aim.aimCdf.clear();
+                aim.aimDensity.clear();
+                double total = 0;
+                for (size_t i = 0; i < n; ++i) {
+                    if (!(by[i * K + g] > 0)) continue;
+                    total += by[i * K + g];
+                    aim.aimPatch.push_back(int(i));
+                    aim.aimCdf.push_back(total);
+                }
+                for (size_t k = 0; k < aim.aimPatch.size(); ++k) {
+                    const double before = k ? aim.aimCdf[k - 1] : 0;
+                    const size_t i = size_t(aim.aimPatch[k]);
+                    Group::Aim& a = aim.aimDensity[int(i)];
+                    a.density = (aim.aimCdf[k] - before) / total / patches.area[i];
+                    if (aim.sphere) {
+                        const Vec3 towards = patches.centroid[i] - aim.sphere->center;
+                        const double d = towards.norm();
+                        a.pole = towards / d;
+                        a.cosCap = d > aim.sphere->radius ? std::min(aim.sphere->radius / d, 1 - 1e-9) : 0.0;
+                    }
+                }
+                for (double& c : aim.aimCdf) c /= total;
+            }
+        };
+        aimBy(power);
+        const int64_t total = std::max<int64_t>(1, seeing) * std::max(1, settings.pathsPerPatch);
+        if (settings.causticShare > 0 && std::any_of(power.begin(), power.end(), [](double p) { return p > 0; })) {
+            SpecularSettings first = settings;
+            first.seed = mixSeed(settings.seed, 0xCA05);
+            const auto lit = tracePaths(scene, patches, tracer, first, groups,
+                                        std::max<int64_t>(1, int64_t(settings.causticShare * double(total))));
+            // The light each patch receives from the lamps through the objects, W (the share of a
+            // lamp's light a path carries there is its part of the lamp's paths' etendue).
+            std::vector<double> received(n, 0.0);
+            for (size_t i = 0; i < n; ++i) {
+                std::vector<double> perEtendue(K, 0.0);
+                for (size_t k = lit->start[i]; k < lit->start[i + 1]; ++k) {
+                    const SpecularPaths::Entry& e = lit->entries[k];
+                    const size_t g = size_t(e.group);
+                    if (e.kind == SpecularPaths::Weight)
+                        perEtendue[g] = e.value[0] > 0 ? power[i * K + g] / e.value[0] : 0.0;
+                    else if (e.kind == SpecularPaths::Delivered)
+                        received[size_t(e.target)] += perEtendue[g] * luminance(e.value);
+                }
+            }
+            for (size_t j = 0; j < n; ++j) {
+                const Material& m = scene.materialOf(scene.objects[size_t(patches.object[j])]);
+                if (m.type != MaterialType::Diffuse || !(received[j] > 0)) continue;
+                for (size_t g = 0; g < K; ++g)
+                    power[j * K + g] += luminance(m.reflectance) * received[j] * share[j * K + g];
+            }
+            aimBy(power);
+        }
+        out.traced = tracePaths(scene, patches, tracer, settings, groups, total);
     }
     const SpecularPaths& paths = *out.traced;
     out.paths = paths.paths;

@@ -9,8 +9,10 @@
 // once for every patch at the same time (per patch, rays from i would mostly miss a small ball:
 // 4,096 a patch took 2.2 s on cornell-glass and most found nothing); by reciprocity the share of
 // i's light that a path carries is its weight in etendue. Half the directions are aimed at points
-// on the lamps, in proportion to the light each sends into o (multiple importance sampling, the
-// balance heuristic): the lamps' light through o is most of what o passes on. Row i's fates are
+// on the lamps, and on the caustics the objects throw (found by a first, small set of paths), in
+// proportion to the light each sends into o, from points of a sphere's cap that sees the patch aimed
+// at (multiple importance sampling, the balance heuristic): the lamps' light through o is most of
+// what o passes on, and a glass ball images the caustic at its foot onto the ceiling. Row i's fates are
 // then scaled to the row's share of o, so the split conserves energy exactly and the power balance
 // still closes.
 #pragma once
@@ -33,6 +35,9 @@ struct SpecularSettings {
     int pathsPerPatch = 128;  // paths traced from the mirrors and glass per patch that sees one
     double aimedShare = 0.5;  // of the paths' directions, the share aimed at the lamps
     int maxDepth = 64;        // specular bounces before a chain is counted absorbed
+    // Paths traced first, as a share of the paths, to find the patches the objects light by a
+    // caustic (aimed at too, by that light); 0: the lamps alone are aimed at.
+    double causticShare = 0.125;
     uint64_t seed = 1;
 };
 
