@@ -652,6 +652,10 @@ std::vector<SolveSetting> solveSettings(SolveOptions& o) {
          &o.specular.pathsPerPatch},
         {"specular_max_depth", "--specular-depth", "Mirror and glass bounces the solve's transport follows", 0, 1000,
          true, &o.specular.maxDepth},
+        {"specular_caustics", "--specular-caustics",
+         "Share of the solve's light paths traced first to find the caustics that mirrors and glass throw, which "
+         "the paths then aim at too (0: the lamps alone)",
+         0, 1, false, &o.specular.causticShare},
         {"refine", "--refine",
          "Adaptive subdivision: after each solve, split patches whose radiosity differs from a neighbour's, or whose "
          "light a shadow edge changes, by more than this fraction (e.g. 0.1)",
