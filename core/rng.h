@@ -34,6 +34,7 @@ enum class Stream : uint64_t {
     CastMore = 0xCA58,           // ray-cast form factors cast again with more rays, per patch
     Closure = 0xC105ED,          // the rays that test whether the scene is closed, per patch
     ObjectReference = 0x0B1EC7,  // the path-traced per-object radiosity (pairRng: object, batch)
+    CausticGrading = 0xCA0571,   // photons that find where caustics fall, for the mesh (per block)
 };
 
 class Rng {

@@ -582,6 +582,22 @@ void gradeMesh(const Scene& scene, const SolveOptions& options, SolveResult& r) 
     r.rays = std::move(best.rays);
 }
 
+// Splits r's patches where caustics fall (caustic_grading.h), down to the contact grading's smallest
+// patches: a quarter of the mean patch's area per level.
+void gradeCausticMesh(const Scene& scene, const SolveOptions& options, SolveResult& r) {
+    CausticGrading settings = options.causticGrading;
+    settings.seed = options.formFactors.seed;
+    if (!(settings.minArea > 0))
+        settings.minArea = std::accumulate(r.patches.area.begin(), r.patches.area.end(), 0.0) /
+                           double(r.patches.size()) / std::pow(4.0, settings.levels);
+    const size_t before = r.patches.size();
+    const Timer timer;
+    const size_t split = gradeCaustics(scene, r.patches, r.rays, settings);
+    if (split > 0)
+        logInfo("caustic grading: ", split, " patches lit by a caustic split: ", r.patches.size(), " patches (", before,
+                " before) in ", timer.seconds(), " s");
+}
+
 // What --solver auto runs, and why.
 std::string chooseSolver(const Scene& scene, const SolveOptions& options, size_t n, std::string& why) {
     const double budget = options.maxMemoryBytes > 0 ? options.maxMemoryBytes : availableMemoryBytes();
@@ -665,6 +681,10 @@ std::vector<SolveSetting> solveSettings(SolveOptions& o) {
          "Split patches that another surface comes closer to than their width, up to this many times, before "
          "the first solve (0: off)",
          0, 8, true, &o.grading.levels},
+        {"grade_caustics", "--grade-caustics",
+         "Split patches where mirrors and glass focus the lamps' light (brighter than the scene's mean irradiance), "
+         "up to this many times, before the first solve (0: off)",
+         0, 8, true, &o.causticGrading.levels},
         {"refine_rounds", "--refine-rounds", "Most rounds of --refine", 1, 100, true, &o.refine.maxRounds},
     };
 }
@@ -708,6 +728,7 @@ SolveResult solveUncounted(const Scene& scene, const SolveOptions& given, const 
     if (r.solverName != "hierarchical") {
         r.patches = meshScene(scene, options.meshing);
         if (options.grading.levels > 0) gradeMesh(scene, options, r);
+        if (options.causticGrading.levels > 0 && scene.hasSpecular()) gradeCausticMesh(scene, options, r);
     }
     r.secondsMeshing = meshTimer.seconds();
     SolveOptions matrix = options;

@@ -10,6 +10,7 @@
 #include "core/counters.h"
 #include "mesh/patches.h"
 #include "mesh/scene.h"
+#include "solver/caustic_grading.h"
 #include "solver/contact_grading.h"
 #include "solver/radiosity/form_factors.h"
 #include "solver/radiosity/hierarchy.h"
@@ -31,6 +32,8 @@ struct SolveOptions {
     RefineSettings refine;  // adaptive subdivision after the first solve (off by default)
     // The first mesh split towards contacts, once (contact_grading.h; --grade-contacts 0: off).
     ContactGrading grading{1};
+    // Then split where mirrors and glass focus the lamps' light (caustic_grading.h; --grade-caustics 0: off).
+    CausticGrading causticGrading;
     // Displayed corner radiosity (vertex_radiosity.h): gather (the equation at each vertex), direct (the
     // mean around it with the small sources' direct light at the vertex) or average (the mean around it).
     std::string vertexRadiosity = "direct";

@@ -232,12 +232,16 @@ TEST(Cli, EverySolveSettingIsAFlagAndComesBackInTheReport) {
     // One value per entry of the settings table, none of them the default: each flag must reach its
     // field (the report says what the solve used) under the key the table gives. A new entry without
     // a value here fails the first check.
-    const std::map<std::string, double> values{
-        {"patches", 60},          {"patch_size_m", 0.25},    {"link_tolerance", 2e-4}, {"roots", 9},
-        {"tolerance", 3e-5},      {"max_iterations", 777},   {"visibility_rays", 3},   {"ff_tolerance", 2e-4},
-        {"specular_rays", 33},    {"specular_max_depth", 7}, {"refine", 0.5},          {"max_patches", 90},
-        {"refine_rounds", 2},     {"ff_rays", 77},           {"grade_contacts", 2},    {"ff_noise", 0.02},
-        {"patches_per_object", 5}};
+    const std::map<std::string, double> values{{"patches", 60},           {"patch_size_m", 0.25},
+                                               {"link_tolerance", 2e-4},  {"roots", 9},
+                                               {"tolerance", 3e-5},       {"max_iterations", 777},
+                                               {"visibility_rays", 3},    {"ff_tolerance", 2e-4},
+                                               {"specular_rays", 33},     {"specular_max_depth", 7},
+                                               {"refine", 0.5},           {"max_patches", 90},
+                                               {"refine_rounds", 2},      {"ff_rays", 77},
+                                               {"grade_contacts", 2},     {"ff_noise", 0.02},
+                                               {"patches_per_object", 5}, {"specular_caustics", 0.25},
+                                               {"grade_caustics", 1}};
     SolveOptions defaults;
     std::string flags;
     for (const SolveSetting& e : solveSettings(defaults)) {
