@@ -202,8 +202,8 @@ TEST(SpecularTransport, PathsFromABallMeasureTheLampsShareOfIt) {
 // that caustic back onto the ceiling beside the lamp: the strip there gathers the caustic's light
 // through the ball, which the cosine paths alone reach only by chance. With the caustic found by a
 // first set of paths and aimed at, the strip's light is the same (within both runs' stated noise)
-// and the noise the paths leave in it smaller. Measured: 0.0075919 +- 0.000409 W with the lamps alone
-// aimed at, 0.0074412 +- 0.000193 W with the caustic too (2.1x less noise).
+// and the noise the paths leave in it smaller. Measured: 0.0072207 +- 0.000398 W with the lamps alone
+// aimed at, 0.0071591 +- 0.000177 W with the caustic too (2.2x less noise).
 TEST(SpecularTransport, ACausticSeenThroughAGlassBallIsAimedAt) {
     const Scene scene = test::sceneFromJson(R"({"materials": {
           "lamp": {"type": "diffuse", "reflectance": 0, "emission": 10},

@@ -143,7 +143,6 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
     };
     double area = 0;
     for (const Group& g : groups) area += density(g);
-    constexpr int kSplit = 1;
     constexpr int64_t kBlock = 1024;
     std::vector<std::pair<size_t, int64_t>> blocks;  // group, first path
     for (size_t g = 0; g < groups.size(); ++g) {
@@ -273,13 +272,11 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 const double weight = group.area * cosX / (kPi * double(group.paths) * pdf);
                 out.push_back(record(from.patch, g, SpecularPaths::Weight, 0, Rgb::Constant(weight), weight * weight));
                 // The light's walk on from the surface, split into every branch for the first
-                // bounces (kSplit): a glass ball's reflections, 4% of the light at normal incidence,
-                // followed by Fresnel's odds were the noise of cornell-glass's ceiling pieces (the
-                // ball sends the lamp's light back around the lamp by reflecting it inside).
+                // settings.splitBounces bounces, then one branch by Fresnel's odds.
                 const Vec3 d = -w;
                 at.t = from.t;
-                followSpecular(tracer, at, d, Rgb::Constant(weight), settings.maxDepth, kSplit, rng, rays,
-                               [&](SpecularPaths::Kind kind, int target, const Rgb& part) {
+                followSpecular(tracer, at, d, Rgb::Constant(weight), settings.maxDepth, settings.splitBounces, rng,
+                               rays, [&](SpecularPaths::Kind kind, int target, const Rgb& part) {
                                    const double mean = part.sum() / 3;
                                    out.push_back(record(from.patch, g, kind, target, part,
                                                         kind == SpecularPaths::Delivered ? mean * mean : 0.0));
