@@ -73,6 +73,10 @@ bool hollowSphere(const PatchSet& patches, const ExactSpheres& exact, size_t k) 
     for (size_t i = 0; i < patches.size(); ++i) {
         if (exact.objectSphere[size_t(patches.object[i])] >= 0) continue;  // a facet: not in the Exact view
         const auto& c = patches.corners[i];
+        Vec3 lo = c[0], hi = c[0];
+        for (const Vec3& p : c) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+        if ((lo.array() > (s.center.array() + s.radius)).any() || (hi.array() < (s.center.array() - s.radius)).any())
+            continue;  // its box clear of the sphere's
         if ((closestOnTriangle(s.center, c[0], c[1], c[3]) - s.center).norm() < inside ||
             (closestOnTriangle(s.center, c[2], c[3], c[1]) - s.center).norm() < inside)
             return false;

@@ -93,6 +93,13 @@ void expectFurnaceCorners(const SolveResult& r, double rho, double tolerance) {
     EXPECT_LT(worst, tolerance) << "worst relative deviation of a displayed corner from E / (1 - rho)";
 }
 
+// The furnace cube of reflectance rho holding a glass ball of radius 0.25 centred at (x, 0.5, 0.5).
+std::string glassBallInCube(double rho = 0.5, double x = 0.5) {
+    return test::furnaceCube(rho, R"({"type": "dielectric", "ior": 1.5})", false,
+                             cat(R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [)", x,
+                                 R"(, 0.5, 0.5], "radius": 0.25})"));
+}
+
 }  // namespace
 
 TEST(SpecularTransport, PerfectMirrorWallKeepsTheFurnaceUniform) {
@@ -109,11 +116,7 @@ TEST(SpecularTransport, PerfectMirrorWallKeepsTheFurnaceUniform) {
 
 TEST(SpecularTransport, LosslessGlassSphereKeepsTheFurnaceUniform) {
     const double rho = 0.5;
-    const SolveResult r = solveWithRays(
-        test::furnaceCube(
-            rho, R"({"type": "dielectric", "ior": 1.5})", false,
-            R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [0.5, 0.5, 0.5], "radius": 0.25})"),
-        200, 2048);
+    const SolveResult r = solveWithRays(glassBallInCube(rho), 200, 2048);
     expectFurnace(r, rho, 0.01);
     expectFurnaceCorners(r, rho, 0.03);
     Rgb glassAbsorbed = Rgb::Zero();
@@ -382,9 +385,7 @@ TEST(SpecularTransport, AllSolversAgreeWithAMirrorAndGlass) {
 TEST(RayScene, OneSceneServesThePatchesAndTheExactSpheres) {
     // A glass ball of radius 0.25 at the cube's centre, seen along +x from x = 0.1: its patches (facets
     // inscribed in the sphere) lie behind the exact surface, which a light path meets at 0.15.
-    const Scene scene = test::sceneFromJson(test::furnaceCube(
-        0.5, R"({"type": "dielectric", "ior": 1.5})", false,
-        R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [0.5, 0.5, 0.5], "radius": 0.25})"));
+    const Scene scene = test::sceneFromJson(glassBallInCube());
     const PatchSet patches = meshScene(scene, {600, 0});
     const std::shared_ptr<const RayScene> rays = buildRayScene(scene, patches);
     ASSERT_EQ(rays->sphereCount(), 1u);
@@ -412,9 +413,7 @@ TEST(RayScene, OneSceneServesThePatchesAndTheExactSpheres) {
 TEST(RayScene, ARayFromInsideAHollowBallMeetsItsSphere) {
     // From inside the ball the tracer solves the sphere instead of tracing it: where it leaves must
     // be where Embree's exact sphere says, the sphere's own point (within float rounding) and normal.
-    const Scene scene = test::sceneFromJson(test::furnaceCube(
-        0.5, R"({"type": "dielectric", "ior": 1.5})", false,
-        R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [0.5, 0.5, 0.5], "radius": 0.25})"));
+    const Scene scene = test::sceneFromJson(glassBallInCube());
     const PatchSet patches = meshScene(scene, {600, 0});
     const std::shared_ptr<const RayScene> rays = buildRayScene(scene, patches);
     const SceneTracer tracer(scene, patches, rays);
@@ -434,9 +433,7 @@ TEST(RayScene, ARayFromInsideAHollowBallMeetsItsSphere) {
         EXPECT_FALSE(s.frontFacing(dir)) << "a ray from inside meets the back of the surface";
     }
     // A ball that a wall cuts into is not hollow: the wall inside it is found, by tracing.
-    const Scene cut = test::sceneFromJson(test::furnaceCube(
-        0.5, R"({"type": "dielectric", "ior": 1.5})", false,
-        R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [0.9, 0.5, 0.5], "radius": 0.25})"));
+    const Scene cut = test::sceneFromJson(glassBallInCube(0.5, 0.9));
     const PatchSet cutPatches = meshScene(cut, {600, 0});
     const SceneTracer cutTracer(cut, cutPatches);
     const SurfaceHit wall = cutTracer.trace(Vec3(0.9, 0.5, 0.5), Vec3(1, 0, 0));
@@ -446,9 +443,7 @@ TEST(RayScene, ARayFromInsideAHollowBallMeetsItsSphere) {
 }
 
 TEST(RayScene, OneSolveAndItsViewsBuildOneScenePerMesh) {
-    const Scene scene = test::sceneFromJson(test::furnaceCube(
-        0.5, R"({"type": "dielectric", "ior": 1.5})", false,
-        R"(, {"name": "ball", "type": "sphere", "material": "spec", "center": [0.5, 0.5, 0.5], "radius": 0.25})"));
+    const Scene scene = test::sceneFromJson(glassBallInCube());
     auto built = [] { return counterValues().at("rays.scenes_built"); };
     const uint64_t before = built();
     SolveOptions o;

@@ -195,7 +195,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
     parallelFor(int64_t(blocks.size()), [&](int64_t begin, int64_t end) {
         prepareTracingThread();
         std::vector<Found> out;
-        out.reserve(4 * kBlock);  // a path leaves about 1.6 records on cornell-glass
+        out.reserve(4 * kBlock);  // a path leaves about 1.9 records on cornell-glass
         for (int64_t bb = begin; bb < end; ++bb, progress.update()) {
             const auto [g, first] = blocks[size_t(bb)];
             const Group& group = groups[g];
