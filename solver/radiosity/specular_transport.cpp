@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <tuple>
 #include <type_traits>
 #include <unordered_map>
@@ -504,6 +505,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
     out.groups = K;
     out.share.assign(n * K, 0.0);
     std::vector<RowResult> rows(n);
+    std::vector<char> unresolved(n * K, 0);  // rows (and objects) no path reached
     parallelFor(
         int64_t(n),
         [&](int64_t begin, int64_t end) {
@@ -538,12 +540,59 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                 }
                 for (size_t g = 0; g < K; ++g)
                     if (s[g] > 0 && scale[g] <= 0) {
-                        row.lost.push_back({groups[g].object, Rgb::Constant(s[g])});
+                        unresolved[i * K + g] = 1;
                         row.unresolved += s[g];
                         shared[g] = s[g];
                     }
                 mergeByTarget(row.delivered);
                 mergeByTarget(row.lost);
+            }
+        },
+        64);
+    // A row no path reached (a patch that sees a sliver of a ball) sends its share on as the nearest
+    // row of its own object that paths did reach sends its share through the same ball; booked
+    // absorbed by the ball, it darkened the walls by 0.18% on cornell-glass at 64 paths a patch. (Its
+    // object's mean fates instead: three times the transfers, each such row reaching every target.)
+    // With no such row, it is absorbed.
+    parallelFor(
+        int64_t(n),
+        [&](int64_t begin, int64_t end) {
+            for (int64_t ii = begin; ii < end; ++ii) {
+                const size_t i = size_t(ii);
+                bool changed = false;
+                for (size_t g = 0; g < K; ++g) {
+                    if (!unresolved[i * K + g]) continue;
+                    size_t near = n;
+                    double best = std::numeric_limits<double>::infinity();
+                    for (size_t j = 0; j < n; ++j) {
+                        if (patches.object[j] != patches.object[i] || unresolved[j * K + g] ||
+                            !(out.share[j * K + g] > 0))
+                            continue;
+                        const double d = (patches.centroid[j] - patches.centroid[i]).squaredNorm();
+                        if (d < best) best = d, near = j;
+                    }
+                    const double f = share[i * K + g];
+                    RowResult& row = rows[i];
+                    changed = true;
+                    if (near == n) {
+                        row.lost.push_back({groups[g].object, Rgb::Constant(f)});
+                        continue;
+                    }
+                    double scale = 0;  // of the near row's paths, per unit of this row's share
+                    for (size_t k = paths.start[near]; k < paths.start[near + 1]; ++k) {
+                        const SpecularPaths::Entry& e = paths.entries[k];
+                        if (size_t(e.group) != g) continue;
+                        if (e.kind == SpecularPaths::Weight)
+                            scale = f / e.value[0];
+                        else if (e.kind == SpecularPaths::Delivered)
+                            row.delivered.push_back({e.target, Rgb(scale * e.value), scale * scale * e.square});
+                        else
+                            row.lost.push_back({e.target, Rgb(scale * e.value)});
+                    }
+                }
+                if (!changed) continue;
+                mergeByTarget(rows[i].delivered);
+                mergeByTarget(rows[i].lost);
             }
         },
         64);

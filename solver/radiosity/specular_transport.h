@@ -65,7 +65,9 @@ struct SpecularTransport {
     std::vector<int> lossObject;
     std::vector<Rgb> lossShare;
 
-    double unresolvedShare = 0;         // area-weighted share F(i, o) no path found (counted absorbed by o)
+    // Area-weighted share F(i, o) no path found (sent on by the fates of i's object's other rows
+    // through o; absorbed by o where there are none).
+    double unresolvedShare = 0;
     std::vector<double> rowUnresolved;  // that share per source patch
     double seconds = 0;
     int64_t paths = 0;  // light paths traced from the mirrors' and glass's surfaces
