@@ -73,7 +73,6 @@ size_t gradeCaustics(const Scene& scene, PatchSet& patches, std::shared_ptr<cons
                        power[i] / patches.area[i] > settings.brighter * mean;
         const size_t asked = size_t(std::count(split.begin(), split.end(), 1));
         if (asked == 0) break;
-        const PatchSet before = patches;
         patches = splitPatches(patches, split);  // adds to `split` what the 2:1 rule needs
         // Each deposit to the child of its patch whose centre is nearest (children in place of
         // their parent, in order).
