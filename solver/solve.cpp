@@ -556,8 +556,12 @@ void gradeMesh(const Scene& scene, const SolveOptions& options, SolveResult& r) 
                           double(r.patches.size()) / std::pow(4.0, grading.levels);
     const size_t uniform = r.patches.size();
     // Every try measures in the uniform mesh's ray scene (the same geometry): one scene built, not three.
+    Timer timer;
     const std::shared_ptr<const RayScene> geometry = buildRayScene(scene, r.patches);
+    logDebug("contact grading: ray scene built in ", timer.seconds(), " s");
+    timer = Timer();
     GradedMesh best = gradeContacts(scene, r.patches, grading, geometry);
+    logDebug("contact grading: try 1 in ", timer.seconds(), " s");
     if (best.split == 0) best.rays = geometry;  // the uniform mesh itself: its scene serves the solve
     const double target = patchTarget(scene, options.meshing);
     auto miss = [&](const GradedMesh& g) { return std::abs(double(g.patches.size()) / target - 1); };
@@ -572,7 +576,12 @@ void gradeMesh(const Scene& scene, const SolveOptions& options, SolveResult& r) 
         asked *= target / got;
         again.targetPatches = std::max(1, int(std::lround(asked)));
         again.patchesPerObject = 0;  // `asked` holds the floor already
-        GradedMesh graded = gradeContacts(scene, meshScene(scene, again), grading, geometry);
+        timer = Timer();
+        PatchSet uniformAgain = meshScene(scene, again);
+        logDebug("contact grading: uniform mesh again in ", timer.seconds(), " s");
+        timer = Timer();
+        GradedMesh graded = gradeContacts(scene, std::move(uniformAgain), grading, geometry);
+        logDebug("contact grading: try ", attempt + 2, " in ", timer.seconds(), " s");
         got = double(graded.patches.size());
         if (miss(graded) < miss(best)) best = std::move(graded);
     }
@@ -727,6 +736,7 @@ SolveResult solveUncounted(const Scene& scene, const SolveOptions& given, const 
     Timer meshTimer;
     if (r.solverName != "hierarchical") {
         r.patches = meshScene(scene, options.meshing);
+        logDebug("meshing: uniform mesh in ", meshTimer.seconds(), " s");
         if (options.grading.levels > 0) gradeMesh(scene, options, r);
         if (options.causticGrading.levels > 0 && scene.hasSpecular()) gradeCausticMesh(scene, options, r);
     }
