@@ -1,47 +1,180 @@
 #include "io/image_io.h"
 
-#include <OpenImageIO/imageio.h>
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <dlfcn.h>
+#include <png.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <memory>
 
 #include "core/error.h"
+#include "core/parallel.h"
 #include "io/atomic_file.h"
+#include "io/oiio_module.h"
 
 namespace penumbra {
 namespace {
 
-void writeWith(const std::string& path, int w, int h, OIIO::TypeDesc type, const void* data) {
+std::string extensionOf(const std::string& path) {
+    std::string e = std::filesystem::path(path).extension().string();
+    std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    return e;
+}
+
+// OpenImageIO's module (io/oiio_module.h), loaded at the first image that needs it: from
+// $PENUMBRA_OIIO_MODULE, else where the build put it, else beside the executable.
+struct OiioModule {
+    decltype(&penumbra_oiio_write) write = nullptr;
+    decltype(&penumbra_oiio_read) read = nullptr;
+};
+
+const OiioModule& oiio() {
+    static const OiioModule module = [] {
+        std::vector<std::string> candidates;
+        if (const char* given = std::getenv("PENUMBRA_OIIO_MODULE")) candidates.push_back(given);
+#ifdef PENUMBRA_OIIO_MODULE_PATH
+        candidates.push_back(PENUMBRA_OIIO_MODULE_PATH);
+#endif
+        std::error_code ec;
+        const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
+        if (!ec) candidates.push_back((self.parent_path() / "libpenumbra_oiio.so").string());
+        std::string tried;
+        for (const std::string& path : candidates) {
+            void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+            if (!handle) {
+                const char* why = dlerror();
+                tried += cat(tried.empty() ? "" : "; ", why ? why : path);
+                continue;
+            }
+            OiioModule m;
+            m.write = reinterpret_cast<decltype(m.write)>(dlsym(handle, "penumbra_oiio_write"));
+            m.read = reinterpret_cast<decltype(m.read)>(dlsym(handle, "penumbra_oiio_read"));
+            if (m.write && m.read) return m;
+            tried += cat(tried.empty() ? "" : "; ", path, ": not Penumbra's OpenImageIO module");
+        }
+        throw Error(cat("cannot load the OpenImageIO module (", tried.empty() ? "no candidate" : tried,
+                        "); set PENUMBRA_OIIO_MODULE to libpenumbra_oiio.so"));
+    }();
+    return module;
+}
+
+// Writes through `write(temporary)`, then renames into place; a failed write leaves nothing.
+template <typename Write>
+void writeAtomically(const std::string& path, Write&& write) {
     const std::string tmp = temporarySibling(path);
-    auto out = OIIO::ImageOutput::create(path);
-    if (!out) throw Error(cat(path, ": cannot write images of this type (", OIIO::geterror(), ")"));
-    OIIO::ImageSpec spec(w, h, 3, type);
-    if (!out->open(tmp, spec) || !out->write_image(type, data) || !out->close()) {
-        const std::string why = out->geterror();
+    try {
+        write(tmp);
+    } catch (const std::exception& e) {
         std::error_code ec;
         std::filesystem::remove(tmp, ec);
-        throw Error(cat(path, ": cannot write image: ", why));
+        throw Error(cat(path, ": cannot write image: ", e.what()));
     }
     commitFile(tmp, path);
+}
+
+void writeWithOiio(const std::string& path, int w, int h, bool isFloat, const void* data) {
+    const OiioModule& m = oiio();
+    writeAtomically(path, [&](const std::string& tmp) {
+        char why[512] = "";
+        if (m.write(tmp.c_str(), w, h, isFloat ? 1 : 0, data, why, sizeof why) != 0) throw Error(why);
+    });
+}
+
+// Linear RGB as 32-bit float EXR, ZIP-compressed in strips by OpenEXR's threads (the format
+// OpenImageIO wrote before: the same files).
+void writeExr(const std::string& path, const Image& image) {
+    writeAtomically(path, [&](const std::string& tmp) {
+        Imf::Header header(image.width, image.height);
+        header.compression() = Imf::ZIP_COMPRESSION;
+        Imf::FrameBuffer frame;
+        const char* names[3] = {"R", "G", "B"};
+        const size_t pixel = 3 * sizeof(float), row = pixel * size_t(image.width);
+        for (int c = 0; c < 3; ++c) {
+            header.channels().insert(names[c], Imf::Channel(Imf::FLOAT));
+            frame.insert(
+                names[c],
+                Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(image.rgb.data() + c)), pixel, row));
+        }
+        Imf::OutputFile out(tmp.c_str(), header, std::max(1, threadCount()));
+        out.setFrameBuffer(frame);
+        out.writePixels(image.height);
+    });
+}
+
+// An EXR's R, G and B (or its Y, as grey); false if it has neither, for OpenImageIO to read.
+bool readExr(const std::string& path, Image& image) {
+    try {
+        Imf::InputFile in(path.c_str(), std::max(1, threadCount()));
+        const Imf::ChannelList& channels = in.header().channels();
+        const bool rgb = channels.findChannel("R") && channels.findChannel("G") && channels.findChannel("B");
+        if (!rgb && !channels.findChannel("Y")) return false;
+        const Imath::Box2i window = in.header().dataWindow();
+        const int w = window.max.x - window.min.x + 1, h = window.max.y - window.min.y + 1;
+        image = Image(w, h);
+        const size_t pixel = 3 * sizeof(float), row = pixel * size_t(w);
+        // The slices' base is where pixel (0, 0) of the data window's origin would be.
+        char* base = reinterpret_cast<char*>(image.rgb.data()) - ptrdiff_t(window.min.x) * ptrdiff_t(pixel) -
+                     ptrdiff_t(window.min.y) * ptrdiff_t(row);
+        Imf::FrameBuffer frame;
+        const char* names[3] = {"R", "G", "B"};
+        for (int c = 0; c < 3; ++c)
+            frame.insert(rgb ? names[c] : "Y", Imf::Slice(Imf::FLOAT, base + c * sizeof(float), pixel, row));
+        in.setFrameBuffer(frame);
+        in.readPixels(window.min.y, window.max.y);
+        return true;
+    } catch (const std::exception& e) {
+        throw Error(cat(path, ": cannot read image: ", e.what()));
+    }
+}
+
+// 8-bit RGB as PNG by libpng, at its fast setting (the previews are for looking at).
+void writePng(const std::string& path, int w, int h, const unsigned char* rgb) {
+    writeAtomically(path, [&](const std::string& tmp) {
+        std::unique_ptr<FILE, int (*)(FILE*)> file(std::fopen(tmp.c_str(), "wb"), std::fclose);
+        if (!file) throw Error(cat("cannot create ", tmp));
+        png_image png{};
+        png.version = PNG_IMAGE_VERSION;
+        png.width = png_uint_32(w), png.height = png_uint_32(h);
+        png.format = PNG_FORMAT_RGB;
+        png.flags = PNG_IMAGE_FLAG_FAST;
+        if (!png_image_write_to_stdio(&png, file.get(), 0, rgb, 0, nullptr)) {
+            const std::string why = png.message;
+            png_image_free(&png);
+            throw Error(why);
+        }
+        if (std::fflush(file.get()) != 0 || std::ferror(file.get())) throw Error("write failed");
+        if (std::fclose(file.release()) != 0) throw Error("write failed");
+    });
 }
 
 }  // namespace
 
 void writeLinearImage(const Image& image, const std::string& path) {
-    writeWith(path, image.width, image.height, OIIO::TypeDesc::FLOAT, image.rgb.data());
+    if (extensionOf(path) == ".exr")
+        writeExr(path, image);
+    else
+        writeWithOiio(path, image.width, image.height, true, image.rgb.data());
 }
 
 Image readLinearImage(const std::string& path) {
-    auto in = OIIO::ImageInput::open(path);
-    if (!in) throw Error(cat(path, ": cannot read image (", OIIO::geterror(), ")"));
-    const OIIO::ImageSpec& spec = in->spec();
-    Image image(spec.width, spec.height);
-    std::vector<float> all(size_t(spec.width) * size_t(spec.height) * size_t(spec.nchannels));
-    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, all.data()))
-        throw Error(cat(path, ": cannot read image: ", in->geterror()));
-    for (size_t p = 0; p < size_t(spec.width) * size_t(spec.height); ++p)
-        for (size_t c = 0; c < 3; ++c)
-            image.rgb[3 * p + c] = all[p * size_t(spec.nchannels) + std::min<size_t>(c, size_t(spec.nchannels) - 1)];
+    Image image;
+    if (extensionOf(path) == ".exr" && readExr(path, image)) return image;
+    const OiioModule& m = oiio();
+    char why[512] = "";
+    int w = 0, h = 0;
+    if (m.read(path.c_str(), &w, &h, nullptr, why, sizeof why) != 0)
+        throw Error(cat(path, ": cannot read image (", why, ")"));
+    image = Image(w, h);
+    if (m.read(path.c_str(), &w, &h, image.rgb.data(), why, sizeof why) != 0)
+        throw Error(cat(path, ": cannot read image: ", why));
     return image;
 }
 
@@ -68,11 +201,14 @@ void writePreviewPng(const Image& image, const std::string& path, double exposur
     const double scale = exposureScale(luminances, exposureStops);
     std::vector<unsigned char> pixels(image.rgb.size());
     for (size_t k = 0; k < image.rgb.size(); ++k) pixels[k] = srgb8(double(image.rgb[k]) * scale);
-    writeWith(path, image.width, image.height, OIIO::TypeDesc::UINT8, pixels.data());
+    writeRgb8(path, image.width, image.height, pixels);
 }
 
 void writeRgb8(const std::string& path, int width, int height, const std::vector<unsigned char>& rgb) {
-    writeWith(path, width, height, OIIO::TypeDesc::UINT8, rgb.data());
+    if (extensionOf(path) == ".png")
+        writePng(path, width, height, rgb.data());
+    else
+        writeWithOiio(path, width, height, false, rgb.data());
 }
 
 std::string previewPathFor(const std::string& linearPath) {

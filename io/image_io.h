@@ -1,4 +1,5 @@
-// Images through OpenImageIO: linear radiance as EXR (or HDR), and tone-mapped sRGB PNG previews.
+// Images: linear radiance as EXR by OpenEXR, 8-bit previews as PNG by libpng, and every other
+// format (.hdr, .tif, ...) through OpenImageIO, loaded as a module when first needed (oiio_module.h).
 #pragma once
 
 #include <string>

@@ -13,7 +13,7 @@ PACKAGES=(
   libembree-dev libeigen3-dev libopenimageio-dev openimageio-tools libopenmesh-dev
   libtbb-dev nlohmann-json3-dev libcli11-dev libgtest-dev libnanoflann-dev libtinygltf-dev
   libglfw3-dev libimgui-dev libgl-dev libegl-dev libgl1-mesa-dri xvfb xauth
-  libbenchmark-dev gnuplot-nox clang-format libjemalloc-dev
+  libbenchmark-dev gnuplot-nox clang-format libjemalloc-dev libopenexr-dev libpng-dev
 )
 
 install_missing() {

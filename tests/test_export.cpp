@@ -136,3 +136,37 @@ TEST(Export, RadianceIsTheClosedFormUnderALamp) {
     EXPECT_GT(checked, 300u);
     EXPECT_LT(worst, 0.01) << "worst relative deviation of an exported floor vertex from the closed form";
 }
+
+// Images written by OpenEXR (linear EXR), libpng (PNG) and OpenImageIO's module (Radiance HDR)
+// read back as written: EXR to the bit (32-bit float), HDR to its shared-exponent precision (8 bits
+// of mantissa: 1/256 relative, 1/128 allowed), PNG to the sRGB code it wrote. A half-written file or
+// a wrong channel order (B and R swapped) fails here.
+TEST(ImageIo, WrittenImagesReadBackAsWritten) {
+    const std::string dir = test::tempDir();
+    Image image(7, 5);
+    for (int y = 0; y < image.height; ++y)
+        for (int x = 0; x < image.width; ++x) image.set(x, y, Rgb(0.01 + 0.1 * x, 0.5 + y, 3.0 * (x + 1) * (y + 1)));
+    writeLinearImage(image, dir + "/a.exr");
+    const Image exr = readLinearImage(dir + "/a.exr");
+    ASSERT_EQ(exr.width, 7);
+    ASSERT_EQ(exr.height, 5);
+    EXPECT_EQ(exr.rgb, image.rgb);
+    writeLinearImage(image, dir + "/a.hdr");
+    const Image hdr = readLinearImage(dir + "/a.hdr");
+    ASSERT_EQ(hdr.rgb.size(), image.rgb.size());
+    for (size_t k = 0; k < image.rgb.size(); ++k) {
+        // RGBE shares the largest channel's exponent: each channel within 1/128 of that channel.
+        const size_t p = k - k % 3;
+        const float largest = std::max({image.rgb[p], image.rgb[p + 1], image.rgb[p + 2]});
+        EXPECT_NEAR(hdr.rgb[k], image.rgb[k], largest / 128) << k;
+    }
+    std::vector<unsigned char> rgb(3 * 7 * 5);
+    for (size_t k = 0; k < rgb.size(); ++k) rgb[k] = static_cast<unsigned char>(k * 7 % 256);
+    writeRgb8(dir + "/a.png", 7, 5, rgb);
+    const Image png = readLinearImage(dir + "/a.png");
+    ASSERT_EQ(png.rgb.size(), rgb.size());
+    for (size_t k = 0; k < rgb.size(); ++k) EXPECT_NEAR(png.rgb[k] * 255, rgb[k], 1e-3) << k;
+    for (const char* left : {"a.exr", "a.hdr", "a.png"}) EXPECT_TRUE(fs::exists(dir + "/" + left));
+    EXPECT_THROW(readLinearImage(dir + "/missing.exr"), Error);
+    EXPECT_THROW(readLinearImage(dir + "/missing.png"), Error);
+}
