@@ -88,12 +88,13 @@ void writeWithOiio(const std::string& path, int w, int h, bool isFloat, const vo
     });
 }
 
-// Linear RGB as 32-bit float EXR, ZIP-compressed in strips by OpenEXR's threads (the format
-// OpenImageIO wrote before: the same files).
+// Linear RGB as 32-bit float EXR, uncompressed: ZIP (what OpenImageIO wrote) took 0.07-0.08 s of
+// OpenEXR's two threads for a 512 x 512 picture, at any zlib level, to save 10% of its 3.1 MB (the
+// low bits of float radiance are noise to zlib); OpenEXR writes it plain in 0.004 s.
 void writeExr(const std::string& path, const Image& image) {
     writeAtomically(path, [&](const std::string& tmp) {
         Imf::Header header(image.width, image.height);
-        header.compression() = Imf::ZIP_COMPRESSION;
+        header.compression() = Imf::NO_COMPRESSION;
         Imf::FrameBuffer frame;
         const char* names[3] = {"R", "G", "B"};
         const size_t pixel = 3 * sizeof(float), row = pixel * size_t(image.width);
