@@ -90,9 +90,12 @@ struct Cubature {
         const double distance = pointPolygonDistance(centre, poly, count);
         int order = 0;
         if (distance > 0) {
-            const double half = diameter / (2 * distance);
-            for (int g = 1; g <= 3 && order == 0; ++g)
-                if (std::pow(half, 2 * g) <= tolerance) order = g;
+            // The lowest order g with half^(2g) within the tolerance (by products: std::pow was 1.5%
+            // of the Cornell box's solve).
+            const double square = (diameter / (2 * distance)) * (diameter / (2 * distance));
+            double power = square;
+            for (int g = 1; g <= 3 && order == 0; ++g, power *= square)
+                if (power <= tolerance) order = g;
         }
         // A cell that r's plane cuts holds points that see both of r's faces: split it, down to
         // cutDepth (the cut runs across the whole patch, so deeper splits cost 2^depth cells).
