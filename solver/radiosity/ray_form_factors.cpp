@@ -628,7 +628,7 @@ void castMoreRays(FormFactorMatrix& F, HitReadings& read, const PatchSet& patche
 }
 
 void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const HitReadings& read,
-                            const std::vector<Rgb>& B) {
+                            const std::vector<Rgb>& B, const std::vector<char>& specular) {
     const size_t n = F.size();
     if (!F.isSparse() || read.rows.size() != n || read.start.size() != n + 1 || B.size() != n) return;
     const Timer timer;
@@ -667,7 +667,7 @@ void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const 
                     else if (delta < 0)
                         phi = std::min(phi, (low - bj) / delta);
                 }
-                limit[j] = float(std::max(phi, 0.0));
+                limit[j] = j < specular.size() && specular[j] ? 0.0f : float(std::max(phi, 0.0));
                 steep[j] = limit[j] * std::sqrt(gu * gu + gv * gv) * patches.radius[j] >= kSteep * bj;
             }
         },
@@ -686,7 +686,8 @@ void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const 
         64);
     replaceRows(F, rows, meanRows);
     size_t limited = 0;
-    for (size_t j = 0; j < n; ++j) limited += read.start[j + 1] > read.start[j] && limit[j] < 1;
+    for (size_t j = 0; j < n; ++j)
+        limited += read.start[j + 1] > read.start[j] && limit[j] < 1 && !(j < specular.size() && specular[j]);
     logInfo("form factors (rays): rays that landed within ", kNearRadii,
             " radii read the light where they landed (slopes of ", limited, " of ", n, " patches limited); entries ",
             before, " -> ", F.entries(), ", ", timer.seconds(), " s");
