@@ -124,12 +124,14 @@ bool readExr(const std::string& path, Image& image) {
         // The slices' base is where pixel (0, 0) of the data window's origin would be.
         char* base = reinterpret_cast<char*>(image.rgb.data()) - ptrdiff_t(window.min.x) * ptrdiff_t(pixel) -
                      ptrdiff_t(window.min.y) * ptrdiff_t(row);
-        Imf::FrameBuffer frame;
+        Imf::FrameBuffer frame;  // one slice a channel name: a grey image's Y into R, then copied
         const char* names[3] = {"R", "G", "B"};
-        for (int c = 0; c < 3; ++c)
+        for (int c = 0; c < (rgb ? 3 : 1); ++c)
             frame.insert(rgb ? names[c] : "Y", Imf::Slice(Imf::FLOAT, base + c * sizeof(float), pixel, row));
         in.setFrameBuffer(frame);
         in.readPixels(window.min.y, window.max.y);
+        if (!rgb)
+            for (size_t k = 0; k < image.rgb.size(); k += 3) image.rgb[k + 1] = image.rgb[k + 2] = image.rgb[k];
         return true;
     } catch (const std::exception& e) {
         throw Error(cat(path, ": cannot read image: ", e.what()));

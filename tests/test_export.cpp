@@ -2,6 +2,10 @@
 // are the stated tone mapping of its radiance, and its radiance is the closed form of a floor under
 // a lamp (Howell's point-to-rectangle factor) at every floor vertex. The PLY holds the same vertices
 // with the sRGB encoding of the same colours.
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfOutputFile.h>
 #include <gtest/gtest.h>
 #include <tiny_gltf.h>
 
@@ -167,6 +171,25 @@ TEST(ImageIo, WrittenImagesReadBackAsWritten) {
     ASSERT_EQ(png.rgb.size(), rgb.size());
     for (size_t k = 0; k < rgb.size(); ++k) EXPECT_NEAR(png.rgb[k] * 255, rgb[k], 1e-3) << k;
     for (const char* left : {"a.exr", "a.hdr", "a.png"}) EXPECT_TRUE(fs::exists(dir + "/" + left));
+    // A grey EXR (one Y channel) whose data window does not start at the origin: Y in each channel.
+    {
+        const Imath::Box2i window(Imath::V2i(2, 3), Imath::V2i(5, 4));  // 4 x 2 pixels
+        Imf::Header header(window, window);
+        header.channels().insert("Y", Imf::Channel(Imf::FLOAT));
+        std::vector<float> grey = {1, 2, 3, 4, 5, 6, 7, 8};
+        Imf::FrameBuffer frame;
+        frame.insert("Y", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(grey.data() - 2 - 3 * 4), sizeof(float),
+                                     4 * sizeof(float)));
+        Imf::OutputFile out((dir + "/grey.exr").c_str(), header);
+        out.setFrameBuffer(frame);
+        out.writePixels(2);
+    }
+    const Image grey = readLinearImage(dir + "/grey.exr");
+    ASSERT_EQ(grey.width, 4);
+    ASSERT_EQ(grey.height, 2);
+    for (int y = 0; y < 2; ++y)
+        for (int x = 0; x < 4; ++x)
+            for (int c = 0; c < 3; ++c) EXPECT_EQ(grey.at(x, y)[c], 1 + x + 4 * y) << x << " " << y << " " << c;
     EXPECT_THROW(readLinearImage(dir + "/missing.exr"), Error);
     EXPECT_THROW(readLinearImage(dir + "/missing.png"), Error);
 }
