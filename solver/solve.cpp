@@ -458,10 +458,7 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
             }
         }
         r.objectNoise = objectNoise(scene, options, r, analytic, first, raysFor);
-        std::vector<char> specular(n, 0);
-        for (size_t j = 0; j < n; ++j)
-            specular[j] = scene.materialOf(scene.objects[size_t(r.patches.object[j])]).type != MaterialType::Diffuse;
-        readLightWhereRaysLand(r.F, r.patches, readings, first, specular);
+        readLightWhereRaysLand(r.F, r.patches, readings, first, r.system.specular);
         readings = HitReadings();
         r.secondsSolve += readTimer.seconds();
     }

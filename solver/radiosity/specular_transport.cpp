@@ -46,6 +46,13 @@ struct RowResult {
     std::vector<Transfer> delivered;  // target patch, S(i -> j)
     std::vector<Transfer> lost;       // object, share absorbed
     double unresolved = 0;
+    // A delivered or lost entry of the paths, `scale` times (per unit of this row's share).
+    void add(const SpecularPaths::Entry& e, double scale) {
+        if (e.kind == SpecularPaths::Delivered)
+            delivered.push_back({e.target, Rgb(scale * e.value), scale * scale * e.square});
+        else
+            lost.push_back({e.target, Rgb(scale * e.value)});
+    }
 };
 
 // A mirror or glass object: its surface, to start paths from.
@@ -533,10 +540,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                         continue;
                     }
                     if (s[g] <= 0 || scale[g] <= 0) continue;
-                    if (e.kind == SpecularPaths::Delivered)
-                        row.delivered.push_back({e.target, Rgb(scale[g] * e.value), scale[g] * scale[g] * e.square});
-                    else
-                        row.lost.push_back({e.target, Rgb(scale[g] * e.value)});
+                    row.add(e, scale[g]);
                 }
                 for (size_t g = 0; g < K; ++g)
                     if (s[g] > 0 && scale[g] <= 0) {
@@ -586,10 +590,8 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                         if (size_t(e.group) != g) continue;
                         if (e.kind == SpecularPaths::Weight)
                             scale = f / e.value[0];
-                        else if (e.kind == SpecularPaths::Delivered)
-                            row.delivered.push_back({e.target, Rgb(scale * e.value), scale * scale * e.square});
                         else
-                            row.lost.push_back({e.target, Rgb(scale * e.value)});
+                            row.add(e, scale);
                     }
                 }
                 if (!changed) continue;
