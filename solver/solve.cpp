@@ -681,6 +681,10 @@ std::vector<SolveSetting> solveSettings(SolveOptions& o) {
          "Share of the solve's light paths traced first to find the caustics that mirrors and glass throw, which "
          "the paths then aim at too (0: the lamps alone)",
          0, 1, false, &o.specular.causticShare},
+        {"specular_receivers", "--specular-receivers",
+         "Share of a ball's light paths traced back from the surfaces that see it, each object as often as any other "
+         "(0: every path from the ball's surface)",
+         0, 0.95, false, &o.specular.receiverShare},
         {"refine", "--refine",
          "Adaptive subdivision: after each solve, split patches whose radiosity differs from a neighbour's, or whose "
          "light a shadow edge changes, by more than this fraction (e.g. 0.1)",

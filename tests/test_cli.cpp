@@ -241,7 +241,7 @@ TEST(Cli, EverySolveSettingIsAFlagAndComesBackInTheReport) {
                                                {"refine_rounds", 2},      {"ff_rays", 77},
                                                {"grade_contacts", 2},     {"ff_noise", 0.02},
                                                {"patches_per_object", 5}, {"specular_caustics", 0.25},
-                                               {"grade_caustics", 1}};
+                                               {"grade_caustics", 1},     {"specular_receivers", 0.4}};
     SolveOptions defaults;
     std::string flags;
     for (const SolveSetting& e : solveSettings(defaults)) {

@@ -22,14 +22,31 @@ struct SpecularPaths {
     enum Kind : uint8_t { Weight = 0, Delivered = 1, Lost = 2 };
     struct Entry {
         int group;          // the mirror or glass object the light met first (index into the groups)
-        Kind kind;          // Weight: the paths' etendue from the source (m^2, every channel); else a fate
+        Kind kind;          // Weight: the paths' etendue from the source; else a fate
         int target;         // patch (delivered) or object (lost)
-        Rgb value;          // m^2: etendue times the share that got there
-        double square = 0;  // sum of the paths' values squared (Delivered: their channels' mean)
+        Rgb value;          // m^2: etendue times the share that got there (Weight: what the same paths delivered)
+        double square = 0;  // sum of the paths' values squared (Weight: their etendue's; Delivered: channels' mean)
+        double weight = 0;  // Weight: the paths' etendue from the source, m^2
     };
     std::vector<size_t> start;  // per source patch, into entries
     std::vector<Entry> entries;
     int64_t paths = 0, rays = 0;
+    bool reversed = false;  // some paths were traced from the receivers (SpecularSettings::receiverShare)
+
+    // The factor, per channel, that brings what source i's entries deliver through group g (the balance
+    // heuristic's sum over both directions) to what its paths from the ball's surface delivered: so each
+    // row's fates still sum to its share (1 where no path was traced the other way).
+    Rgb deliveredScale(size_t i, int g) const {
+        if (!reversed) return Rgb::Ones();
+        Rgb reached = Rgb::Zero(), sum = Rgb::Zero();
+        for (size_t k = start[i]; k < start[i + 1]; ++k) {
+            const Entry& e = entries[k];
+            if (e.group != g) continue;
+            if (e.kind == Weight) reached += e.value;
+            if (e.kind == Delivered) sum += e.value;
+        }
+        return (sum > 0).select(reached / sum.max(1e-300), Rgb::Ones());
+    }
 };
 
 namespace {
@@ -46,12 +63,15 @@ struct RowResult {
     std::vector<Transfer> delivered;  // target patch, S(i -> j)
     std::vector<Transfer> lost;       // object, share absorbed
     double unresolved = 0;
-    // A delivered or lost entry of the paths, `scale` times (per unit of this row's share).
-    void add(const SpecularPaths::Entry& e, double scale) {
-        if (e.kind == SpecularPaths::Delivered)
-            delivered.push_back({e.target, Rgb(scale * e.value), scale * scale * e.square});
-        else
+    // A delivered or lost entry of the paths, `scale` times (per unit of this row's share); a delivered
+    // one `reach` times more (deliveredScale).
+    void add(const SpecularPaths::Entry& e, double scale, const Rgb& reach) {
+        if (e.kind == SpecularPaths::Delivered) {
+            const double r = reach.sum() / 3;
+            delivered.push_back({e.target, Rgb(scale * reach * e.value), scale * scale * r * r * e.square});
+        } else {
             lost.push_back({e.target, Rgb(scale * e.value)});
+        }
     }
 };
 
@@ -77,6 +97,10 @@ struct Group {
         double capFactor(const Vec3& n) const { return n.dot(pole) >= cosCap ? 2 / (1 - cosCap) : 0.0; }
     };
     std::unordered_map<int, Aim> aimDensity;
+    // The patches paths are traced back from (SpecularSettings::receiverShare), likewise.
+    std::vector<int> receiverPatch;
+    std::vector<double> receiverCdf;
+    std::unordered_map<int, Aim> receiverDensity;
 };
 
 // Sorts by target and sums the entries of equal targets.
@@ -94,45 +118,45 @@ void mergeByTarget(std::vector<Transfer>& v) {
     v.resize(out);
 }
 
-// Light arriving along `dir` at `hit`, a mirror or glass surface, carrying `carried`, on to its fates
-// (fate(kind, target, share): Delivered to a patch's front, Lost to an object): every branch for the
-// first `split` bounces, then one branch at a time by its odds (walkSpecular), `depth` bounces in all.
-template <typename Fate>
+// Light arriving along `dir` at `hit`, a mirror or glass surface, carrying `carried`, on to its fates:
+// lose(object, share) where an object absorbs it, deliver(at, along, share) where it lands on the front
+// of a diffuse patch (at, arriving along `along`); every branch for the first `split` bounces, then one
+// branch at a time by its odds (walkSpecular), `depth` bounces in all.
+template <typename Lose, typename Deliver>
 void followSpecular(const SceneTracer& tracer, const SurfaceHit& hit, const Vec3& dir, const Rgb& carried, int depth,
-                    int split, Rng& rng, int64_t& rays, const Fate& fate) {
+                    int split, Rng& rng, int64_t& rays, const Lose& lose, const Deliver& deliver) {
     if (depth <= 0) {
-        fate(SpecularPaths::Lost, hit.object, carried);
+        lose(hit.object, carried);
         return;
     }
     auto land = [&](const SurfaceHit& at, const Vec3& along, const Rgb& light) {
         if (!at.found) return;  // out of the scene: the remainder of the balance
         if (at.frontFacing(along))
-            fate(SpecularPaths::Delivered, at.patch, light);
+            deliver(at, along, light);
         else
-            fate(SpecularPaths::Lost, at.object, light);
+            lose(at.object, light);
     };
     if (split <= 0) {
-        const SpecularWalk walk = walkSpecular(tracer, hit, dir, rng, depth, 0.0, [&](int object, const Rgb& part) {
-            fate(SpecularPaths::Lost, object, Rgb(carried * part));
-        });
+        const SpecularWalk walk = walkSpecular(tracer, hit, dir, rng, depth, 0.0,
+                                               [&](int object, const Rgb& part) { lose(object, Rgb(carried * part)); });
         rays += walk.bounces;
         if (walk.end == WalkEnd::Diffuse)
             land(walk.hit, walk.dir, carried * walk.throughput);
         else if (walk.end != WalkEnd::Escaped)
-            fate(SpecularPaths::Lost, walk.hit.object, carried * walk.throughput);
+            lose(walk.hit.object, carried * walk.throughput);
         return;
     }
     SpecularBranch branch[2];
     const int branches = specularBranches(hit, dir, branch);
     Rgb kept = Rgb::Ones();
     for (int b = 0; b < branches; ++b) kept -= branch[b].weight;
-    if ((kept > 0).any()) fate(SpecularPaths::Lost, hit.object, Rgb(carried * kept.max(0.0)));
+    if ((kept > 0).any()) lose(hit.object, Rgb(carried * kept.max(0.0)));
     for (int b = 0; b < branches; ++b) {
         const SurfaceHit next = tracer.trace(tracer.offset(hit, branch[b].dir), branch[b].dir);
         ++rays;
         const Rgb light = carried * branch[b].weight;
         if (next.found && next.material->type != MaterialType::Diffuse)
-            followSpecular(tracer, next, branch[b].dir, light, depth - 1, split - 1, rng, rays, fate);
+            followSpecular(tracer, next, branch[b].dir, light, depth - 1, split - 1, rng, rays, lose, deliver);
         else
             land(next, branch[b].dir, light);
     }
@@ -161,18 +185,20 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
         for (int64_t b = 0; b < groups[g].paths; b += kBlock) blocks.emplace_back(g, b);
     }
     const double share = std::clamp(settings.aimedShare, 0.0, 1.0);
+    const double receiverShare = std::clamp(settings.receiverShare, 0.0, 0.95);
     // What one path found, as compact as it goes (a cornell-glass solve writes about a million):
     // summed in double once collated.
     struct Found {
         int source, target;
         uint16_t group;
         uint8_t kind;
-        float value[3], square;
+        float value[3], square, weight;
     };
     static_assert(std::is_trivial_v<Found>);
-    auto record = [](int source, size_t g, SpecularPaths::Kind kind, int target, const Rgb& v, double square) {
-        return Found{source,       target, uint16_t(g), uint8_t(kind), {float(v[0]), float(v[1]), float(v[2])},
-                     float(square)};
+    auto record = [](int source, size_t g, SpecularPaths::Kind kind, int target, const Rgb& v, double square,
+                     double weight = 0) {
+        return Found{source,        target,       uint16_t(g), uint8_t(kind), {float(v[0]), float(v[1]), float(v[2])},
+                     float(square), float(weight)};
     };
     // Each block's records, sorted while still in cache into buckets of 2^shift source patches
     // (bucketStart per block); a bucket's records are collated in cache afterwards. (A scatter of
@@ -209,21 +235,89 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
             const Group& group = groups[g];
             const Material& material = scene.materialOf(scene.objects[size_t(group.object)]);
             const double aimed = group.aimPatch.empty() ? 0.0 : share;
+            // Paths traced back from the receivers: on spheres (the caps), where there are any.
+            const double back = group.sphere && !group.receiverPatch.empty() ? receiverShare : 0.0;
+            const double N = double(group.paths);
             Rng rng = pairRng(settings.seed, Stream::SpecularTransport, g, uint64_t(first / kBlock));
             out.clear();
             int64_t& rays = blockRays[size_t(bb)];
-            const uint64_t strategySeed[2] = {mixSeed(sobolSeed, g, 0), mixSeed(sobolSeed, g, 1)};  // cosine, aimed
+            const uint64_t strategySeed[3] = {mixSeed(sobolSeed, g, 0), mixSeed(sobolSeed, g, 1),
+                                              mixSeed(sobolSeed, g, 2)};  // cosine, aimed, traced back
+            // The densities of a path's two ends over the etendue at the ball's surface (per m^2 per
+            // steradian of projected solid angle, relative to uniform points): from the ball's surface at
+            // x (normal n) along w to the source `from` (cosine and aimed mixed), and back from x'
+            // (normal n') along r to the receiver `to`. Etendue is conserved along the path through
+            // the ball, so the two are comparable (the balance heuristic), and the branches' odds
+            // are the same either way.
+            auto forward = [&](const Vec3& n, const Vec3& w, const SurfaceHit& from) {
+                const double cosX = n.dot(w);
+                double pdf = (1 - aimed) * cosX / kPi;
+                if (aimed > 0) {
+                    const auto a = group.aimDensity.find(from.patch);
+                    if (a != group.aimDensity.end())
+                        pdf += aimed * (group.sphere ? a->second.capFactor(n) : 1.0) * a->second.density * from.t *
+                               from.t / std::abs(from.normal.dot(w));
+                }
+                return pdf / cosX;
+            };
+            auto backward = [&](const Vec3& n, const Vec3& r, const SurfaceHit& to) {
+                const auto a = group.receiverDensity.find(to.patch);
+                if (a == group.receiverDensity.end()) return 0.0;
+                return a->second.capFactor(n) * a->second.density * to.t * to.t / std::abs(to.normal.dot(r)) / n.dot(r);
+            };
+            // The point where the light left the ball towards `at` (along `along`), and the sphere's normal there.
+            auto leaving = [&](const SurfaceHit& at, const Vec3& along) {
+                return Vec3((at.point - at.t * along - group.sphere->center).normalized());
+            };
             for (int64_t k = first; k < first + kBlock; ++k) {
-                // Path k takes the aimed strategy or the cosine one by a fixed split in proportion
-                // (with the balance heuristic the same weights as a coin, without its binomial count),
-                // and the next point of that strategy's own scrambled Sobol set: its points (pa, pb)
-                // and directions (da, db) stratified together. (Strata of points per block with
-                // directions shuffled left cornell-glass's ceiling pieces at 1.05% rms, their noise
-                // the floor's light that the glass ball carries up to them.)
-                const int64_t before = int64_t(std::floor(double(k) * aimed));
-                const bool aiming = int64_t(std::floor(double(k + 1) * aimed)) > before;
+                // Path k is traced back from a receiver, or else takes the aimed strategy or the cosine
+                // one, by fixed splits in proportion (with the balance heuristic the same weights as a
+                // coin, without its binomial count), and the next point of that strategy's own scrambled
+                // Sobol set: its points (pa, pb) and directions (da, db) stratified together. (Strata of
+                // points per block with directions shuffled left cornell-glass's ceiling pieces at
+                // 1.05% rms, their noise the floor's light that the glass ball carries up to them.)
+                const int64_t backBefore = int64_t(std::floor(double(k) * back));
+                if (int64_t(std::floor(double(k + 1) * back)) > backBefore) {
+                    const auto [pa, pb, da, db] = scrambledSobol(uint32_t(backBefore), strategySeed[2]);
+                    double within = 0;
+                    const int to = group.receiverPatch[pick(group.receiverCdf, da, within)];
+                    const Group::Aim& aimAt = group.receiverDensity.at(to);
+                    const double z = 1 - pa * (1 - aimAt.cosCap), phi = 2 * kPi * pb;
+                    const double rr = std::sqrt(std::max(0.0, 1 - z * z));
+                    const Vec3 n = toWorld(Vec3(rr * std::cos(phi), rr * std::sin(phi), z), aimAt.pole);
+                    SurfaceHit at;
+                    at.found = true;
+                    at.object = group.object;
+                    at.material = &material;
+                    at.normal = n;
+                    at.point = group.sphere->center + group.sphere->radius * n;
+                    const Vec3 r = (samplePatchPoint(patches, size_t(to), within, db, 0) - at.point).normalized();
+                    if (!(n.dot(r) > 0)) continue;
+                    const SurfaceHit hit = tracer.trace(at.point + tracer.epsilon() * n, r);
+                    ++rays;
+                    if (!hit.found || hit.patch != to || !hit.frontFacing(r)) continue;
+                    const double qBack = back * backward(n, r, hit);
+                    at.t = hit.t;
+                    // The light's walk from the receiver back through the ball to where it came from.
+                    followSpecular(
+                        tracer, at, Vec3(-r), Rgb::Ones(), settings.maxDepth, settings.splitBounces, rng, rays,
+                        [](int, const Rgb&) {},
+                        [&](const SurfaceHit& from, const Vec3& w, const Rgb& light) {
+                            if (from.patch < 0 || from.material->type != MaterialType::Diffuse) return;
+                            const Vec3 nx = leaving(from, w);
+                            if (!(nx.dot(w) > 0)) return;
+                            const Rgb v =
+                                light * (group.area / (kPi * N * ((1 - back) * forward(nx, w, from) + qBack)));
+                            const double mean = v.sum() / 3;
+                            out.push_back(record(from.patch, g, SpecularPaths::Delivered, to, v, mean * mean));
+                        });
+                    continue;
+                }
+                const int64_t kf = k - backBefore;
+                const int64_t before = int64_t(std::floor(double(kf) * aimed));
+                const bool aiming = int64_t(std::floor(double(kf + 1) * aimed)) > before;
                 const auto [pa, pb, da, db] =
-                    scrambledSobol(uint32_t(aiming ? before : k - before), strategySeed[aiming]);
+                    scrambledSobol(uint32_t(aiming ? before : kf - before), strategySeed[aiming]);
                 // A point on the surface and its side's normal; for an aimed path the patch aimed at
                 // first, and on a sphere a point of the cap that sees it.
                 int aim = -1;
@@ -259,8 +353,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                     w = (samplePatchPoint(patches, size_t(aim), within, db, 0) - at.point).normalized();
                 else
                     w = cosineDirection(n, da, db);
-                const double cosX = n.dot(w);
-                if (!(cosX > 0)) continue;
+                if (!(n.dot(w) > 0)) continue;
                 const SurfaceHit from = tracer.trace(at.point + tracer.epsilon() * n, w);
                 ++rays;
                 // The light must come from the front of a diffuse patch that sees the surface directly.
@@ -270,25 +363,36 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 // An aimed direction that met another patch first found nothing: so the aimed
                 // strategy's density is that of the patch the ray meets, wherever it lands.
                 if (aim >= 0 && from.patch != aim) continue;
-                double pdf = (1 - aimed) * cosX / kPi;
-                if (aimed > 0) {
-                    const auto a = group.aimDensity.find(from.patch);
-                    if (a != group.aimDensity.end())
-                        pdf += aimed * (group.sphere ? a->second.capFactor(n) : 1.0) * a->second.density * from.t *
-                               from.t / std::abs(from.normal.dot(w));
-                }
-                const double weight = group.area * cosX / (kPi * double(group.paths) * pdf);
-                out.push_back(record(from.patch, g, SpecularPaths::Weight, 0, Rgb::Constant(weight), weight * weight));
+                const double qForward = (1 - back) * forward(n, w, from);
+                const double weight = group.area / (kPi * N * qForward);
+                const size_t weightRecord = out.size();
+                out.push_back(record(from.patch, g, SpecularPaths::Weight, 0, Rgb::Zero(), weight * weight, weight));
                 // The light's walk on from the surface, split into every branch for the first
-                // settings.splitBounces bounces, then one branch by Fresnel's odds.
-                const Vec3 d = -w;
+                // settings.splitBounces bounces, then one branch by Fresnel's odds. What it delivers
+                // is weighed against the paths traced back from the receivers (its own share kept in
+                // the Weight record: deliveredScale).
+                Rgb reached = Rgb::Zero();
                 at.t = from.t;
-                followSpecular(tracer, at, d, Rgb::Constant(weight), settings.maxDepth, settings.splitBounces, rng,
-                               rays, [&](SpecularPaths::Kind kind, int target, const Rgb& part) {
-                                   const double mean = part.sum() / 3;
-                                   out.push_back(record(from.patch, g, kind, target, part,
-                                                        kind == SpecularPaths::Delivered ? mean * mean : 0.0));
-                               });
+                followSpecular(
+                    tracer, at, Vec3(-w), Rgb::Constant(weight), settings.maxDepth, settings.splitBounces, rng, rays,
+                    [&](int object, const Rgb& part) {
+                        out.push_back(record(from.patch, g, SpecularPaths::Lost, object, part, 0.0));
+                    },
+                    [&](const SurfaceHit& to, const Vec3& along, const Rgb& part) {
+                        reached += part;
+                        double mis = 1;
+                        if (back > 0) {
+                            const Vec3 nr = leaving(to, along);
+                            const double qBack = nr.dot(along) > 0 ? back * backward(nr, along, to) : 0.0;
+                            mis = qForward / (qForward + qBack);
+                        }
+                        const Rgb v = part * mis;
+                        const double mean = v.sum() / 3;
+                        out.push_back(record(from.patch, g, SpecularPaths::Delivered, to.patch, v, mean * mean));
+                    });
+                const Rgb value = reached;
+                out[weightRecord].value[0] = float(value[0]), out[weightRecord].value[1] = float(value[1]),
+                out[weightRecord].value[2] = float(value[2]);
             }
             // The block's records by bucket, stable (in path order within each).
             uint32_t* at = &bucketStart[size_t(bb) * (buckets + 1)];
@@ -343,12 +447,13 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 std::sort(from, to, [&](const Found& x, const Found& y) { return key(x) < key(y); });
                 for (const Found* f = from; f != to; ++f) {
                     if (f == from || key(f[-1]) != key(*f)) {
-                        entries.push_back({f->group, SpecularPaths::Kind(f->kind), f->target, Rgb::Zero(), 0.0});
+                        entries.push_back({f->group, SpecularPaths::Kind(f->kind), f->target, Rgb::Zero(), 0.0, 0.0});
                         ++distinct[first + i + 1];
                     }
                     Entry& e = entries.back();
                     e.value += Rgb(f->value[0], f->value[1], f->value[2]);
                     e.square += f->square;
+                    e.weight += f->weight;
                 }
             }
         }
@@ -364,7 +469,10 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
         }
     });
     paths->start = std::move(distinct);
-    for (const Group& g : groups) paths->paths += g.paths;
+    for (const Group& g : groups) {
+        paths->paths += g.paths;
+        paths->reversed = paths->reversed || (receiverShare > 0 && g.sphere && !g.receiverPatch.empty());
+    }
     for (int64_t r : blockRays) paths->rays += r;
     logDebug("specular transport: paths traced in ", traceSeconds, " s, collated in ", collateTimer.seconds(), " s (",
              records, " records, ", paths->entries.size(), " entries)");
@@ -436,34 +544,60 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                 kPi * luminance(scene.materialOf(scene.objects[size_t(patches.object[i])]).emission) * patches.area[i];
             for (size_t g = 0; g < K; ++g) power[i * K + g] = emitted * share[i * K + g];
         }
-        auto aimBy = [&](const std::vector<double>& by) {
-            for (size_t g = 0; g < K; ++g) {
-                Group& aim = groups[g];
-                aim.aimPatch.clear();
-                aim.aimCdf.clear();
-                aim.aimDensity.clear();
-                double total = 0;
-                for (size_t i = 0; i < n; ++i) {
-                    if (!(by[i * K + g] > 0)) continue;
-                    total += by[i * K + g];
-                    aim.aimPatch.push_back(int(i));
-                    aim.aimCdf.push_back(total);
-                }
-                for (size_t k = 0; k < aim.aimPatch.size(); ++k) {
-                    const double before = k ? aim.aimCdf[k - 1] : 0;
-                    const size_t i = size_t(aim.aimPatch[k]);
-                    Group::Aim& a = aim.aimDensity[int(i)];
-                    a.density = (aim.aimCdf[k] - before) / total / patches.area[i];
-                    if (aim.sphere) {
-                        const Vec3 towards = patches.centroid[i] - aim.sphere->center;
-                        const double d = towards.norm();
-                        a.pole = towards / d;
-                        a.cosCap = d > aim.sphere->radius ? std::min(aim.sphere->radius / d, 1 - 1e-9) : 0.0;
-                    }
-                }
-                for (double& c : aim.aimCdf) c /= total;
+        // A table of patches to aim at, by `by` (per patch and object): cumulative, normalised, and each
+        // patch's chance per m^2, with the cap of a sphere that sees it.
+        auto table = [&](const std::vector<double>& by, size_t g, std::vector<int>& aimPatch,
+                         std::vector<double>& aimCdf, std::unordered_map<int, Group::Aim>& aimDensity) {
+            const Group& aim = groups[g];
+            aimPatch.clear();
+            aimCdf.clear();
+            aimDensity.clear();
+            double total = 0;
+            for (size_t i = 0; i < n; ++i) {
+                if (!(by[i * K + g] > 0)) continue;
+                total += by[i * K + g];
+                aimPatch.push_back(int(i));
+                aimCdf.push_back(total);
             }
+            for (size_t k = 0; k < aimPatch.size(); ++k) {
+                const double before = k ? aimCdf[k - 1] : 0;
+                const size_t i = size_t(aimPatch[k]);
+                Group::Aim& a = aimDensity[int(i)];
+                a.density = (aimCdf[k] - before) / total / patches.area[i];
+                if (aim.sphere) {
+                    const Vec3 towards = patches.centroid[i] - aim.sphere->center;
+                    const double d = towards.norm();
+                    a.pole = towards / d;
+                    a.cosCap = d > aim.sphere->radius ? std::min(aim.sphere->radius / d, 1 - 1e-9) : 0.0;
+                }
+            }
+            for (double& c : aimCdf) c /= total;
         };
+        auto aimBy = [&](const std::vector<double>& by) {
+            for (size_t g = 0; g < K; ++g) table(by, g, groups[g].aimPatch, groups[g].aimCdf, groups[g].aimDensity);
+        };
+        // The receivers paths are traced back from: every diffuse object that sees the ball and reflects,
+        // each as often as any other, over its patches by their etendue to the ball (A_j F(j, o)).
+        if (settings.receiverShare > 0) {
+            std::vector<double> seen(scene.objects.size() * K, 0.0), by(n * K, 0.0);
+            auto reflects = [&](size_t j) {
+                const Material& m = scene.materialOf(scene.objects[size_t(patches.object[j])]);
+                return m.type == MaterialType::Diffuse && (m.reflectance > 0).any();
+            };
+            for (size_t j = 0; j < n; ++j)
+                if (reflects(j))
+                    for (size_t g = 0; g < K; ++g)
+                        seen[size_t(patches.object[j]) * K + g] += patches.area[j] * share[j * K + g];
+            for (size_t j = 0; j < n; ++j)
+                if (reflects(j))
+                    for (size_t g = 0; g < K; ++g) {
+                        const double s = seen[size_t(patches.object[j]) * K + g];
+                        if (s > 0) by[j * K + g] = patches.area[j] * share[j * K + g] / s;
+                    }
+            for (size_t g = 0; g < K; ++g)
+                if (groups[g].sphere)
+                    table(by, g, groups[g].receiverPatch, groups[g].receiverCdf, groups[g].receiverDensity);
+        }
         aimBy(power);
         const int64_t total = std::max<int64_t>(1, seeing) * std::max(1, settings.pathsPerPatch);
         if (settings.causticShare > 0 && std::any_of(power.begin(), power.end(), [](double p) { return p > 0; })) {
@@ -480,7 +614,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                     const SpecularPaths::Entry& e = lit->entries[k];
                     const size_t g = size_t(e.group);
                     if (e.kind == SpecularPaths::Weight)
-                        perEtendue[g] = e.value[0] > 0 ? power[i * K + g] / e.value[0] : 0.0;
+                        perEtendue[g] = e.weight > 0 ? power[i * K + g] / e.weight : 0.0;
                     else if (e.kind == SpecularPaths::Delivered)
                         received[size_t(e.target)] += perEtendue[g] * luminance(e.value);
                 }
@@ -517,6 +651,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
         int64_t(n),
         [&](int64_t begin, int64_t end) {
             std::vector<double> scale(K);
+            std::vector<Rgb> reach(K, Rgb::Ones());
             for (int64_t ii = begin; ii < end; ++ii) {
                 const size_t i = size_t(ii);
                 const double* s = &share[i * K];
@@ -532,15 +667,16 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                         if (!rowRays.empty() && f > 0) {
                             const double a = patches.area[i] * (F.exposed.empty() ? 1.0 : double(F.exposed[i]));
                             const double own = std::max(rowRays[i], 1.0);
-                            const double theirs = a * e.value[0] / e.square;
-                            f = (own * f + theirs * e.value[0] / a) / (own + theirs);
+                            const double theirs = a * e.weight / e.square;
+                            f = (own * f + theirs * e.weight / a) / (own + theirs);
                         }
                         shared[g] = f;
-                        scale[g] = f / e.value[0];
+                        scale[g] = f / e.weight;
+                        reach[g] = paths.deliveredScale(i, int(g));
                         continue;
                     }
                     if (s[g] <= 0 || scale[g] <= 0) continue;
-                    row.add(e, scale[g]);
+                    row.add(e, scale[g], reach[g]);
                 }
                 for (size_t g = 0; g < K; ++g)
                     if (s[g] > 0 && scale[g] <= 0) {
@@ -585,13 +721,14 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                         continue;
                     }
                     double scale = 0;  // of the near row's paths, per unit of this row's share
+                    const Rgb reach = paths.deliveredScale(near, int(g));
                     for (size_t k = paths.start[near]; k < paths.start[near + 1]; ++k) {
                         const SpecularPaths::Entry& e = paths.entries[k];
                         if (size_t(e.group) != g) continue;
                         if (e.kind == SpecularPaths::Weight)
-                            scale = f / e.value[0];
+                            scale = f / e.weight;
                         else
-                            row.add(e, scale);
+                            row.add(e, scale, reach);
                     }
                 }
                 if (!changed) continue;

@@ -45,6 +45,11 @@ struct SpecularSettings {
     // caustic (aimed at too, by that light); 0: the lamps alone are aimed at. (cornell-glass's stated
     // noise is the same from 1/32 to 1/4: 2026-12-05.)
     double causticShare = 1.0 / 32;
+    // Of a ball's paths, the share traced the other way: from a point on the patch aimed at, the light
+    // that reaches it through the ball followed back to where it came from. Each object that sees the
+    // ball is aimed at as often as any other, so a small one is reached by as many paths as a large one
+    // (the balance heuristic weighs them against the paths from the balls' surfaces).
+    double receiverShare = 0.25;
     uint64_t seed = 1;
 };
 
