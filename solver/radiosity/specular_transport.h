@@ -12,9 +12,11 @@
 // on the lamps, and on the caustics the objects throw (found by a first, small set of paths), in
 // proportion to the light each sends into o, from points of a sphere's cap that sees the patch aimed
 // at (multiple importance sampling, the balance heuristic): the lamps' light through o is most of
-// what o passes on, and a glass ball images the caustic at its foot onto the ceiling. Row i's fates are
-// then scaled to the row's share of o, so the split conserves energy exactly and the power balance
-// still closes.
+// what o passes on, and a glass ball images the caustic at its foot onto the ceiling. A quarter of a
+// ball's paths are traced the other way, from the diffuse objects that see it (each as often as any
+// other: a small one is reached as often as a large one), and weighed against the rest by the same
+// heuristic. Row i's fates are then scaled to the row's share of o, so the split conserves energy
+// exactly and the power balance still closes.
 #pragma once
 
 #include <cstdint>
