@@ -223,6 +223,13 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
         orthonormalBasis(pole, t, b);
         return Vec3(local.x() * t + local.y() * b + local.z() * pole);
     };
+    // A sphere's normal at a point uniform over it, or over the cap of `cap` (by the Sobol pair pa, pb).
+    auto spherePoint = [&](double pa, double pb, const Group::Aim* cap) {
+        const double z = cap ? 1 - pa * (1 - cap->cosCap) : 1 - 2 * pa, phi = 2 * kPi * pb;
+        const double r = std::sqrt(std::max(0.0, 1 - z * z));
+        const Vec3 local(r * std::cos(phi), r * std::sin(phi), z);
+        return cap ? toWorld(local, cap->pole) : local;
+    };
     std::vector<int64_t> blockRays(blocks.size(), 0);
     Timer traceTimer;
     Progress progress("specular transport", int64_t(blocks.size()));
@@ -282,9 +289,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                     double within = 0;
                     const int to = group.receiverPatch[pick(group.receiverCdf, da, within)];
                     const Group::Aim& aimAt = group.receiverDensity.at(to);
-                    const double z = 1 - pa * (1 - aimAt.cosCap), phi = 2 * kPi * pb;
-                    const double rr = std::sqrt(std::max(0.0, 1 - z * z));
-                    const Vec3 n = toWorld(Vec3(rr * std::cos(phi), rr * std::sin(phi), z), aimAt.pole);
+                    const Vec3 n = spherePoint(pa, pb, &aimAt);
                     SurfaceHit at;
                     at.found = true;
                     at.object = group.object;
@@ -333,10 +338,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 at.material = &material;
                 Vec3 n;
                 if (group.sphere) {
-                    const double z = aimAt ? 1 - pa * (1 - aimAt->cosCap) : 1 - 2 * pa, phi = 2 * kPi * pb;
-                    const double r = std::sqrt(std::max(0.0, 1 - z * z));
-                    const Vec3 local(r * std::cos(phi), r * std::sin(phi), z);
-                    n = aimAt ? toWorld(local, aimAt->pole) : local;
+                    n = spherePoint(pa, pb, aimAt);
                     at.normal = n;
                     at.point = group.sphere->center + group.sphere->radius * n;
                 } else {
