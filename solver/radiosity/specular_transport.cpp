@@ -5,7 +5,6 @@
 #include <limits>
 #include <tuple>
 #include <type_traits>
-#include <unordered_map>
 
 #include "core/counters.h"
 #include "core/log.h"
@@ -83,24 +82,31 @@ struct Group {
     std::vector<double> cdf;  // over the patches, by area
     double area = 0;          // m^2 paths start from (both sides of an open surface)
     int64_t paths = 0;
-    // The patches aimed at, by the light each sends into the object (aimCdf cumulative, normalised),
-    // and each patch's chance per m^2 of being aimed at (0 where it is not).
-    std::vector<int> aimPatch;
-    std::vector<double> aimCdf;
     // On a sphere an aimed path starts in the cap that sees the aimed patch's centroid (pole, cos of
     // its angular radius): the rest of the sphere sees little or none of the patch.
     struct Aim {
-        double density = 0;
+        double density = 0;  // the patch's chance per m^2 of being aimed at
         Vec3 pole = Vec3::UnitZ();
         double cosCap = 0;
         // How much denser than uniform over the sphere aimed points are at normal n (0 outside the cap).
         double capFactor(const Vec3& n) const { return n.dot(pole) >= cosCap ? 2 / (1 - cosCap) : 0.0; }
     };
-    std::unordered_map<int, Aim> aimDensity;
-    // The patches paths are traced back from (SpecularSettings::receiverShare), likewise.
-    std::vector<int> receiverPatch;
-    std::vector<double> receiverCdf;
-    std::unordered_map<int, Aim> receiverDensity;
+    // Patches to aim at: `patch` picked by `cdf` (cumulative, normalised), each one's Aim, and per
+    // patch of the scene its place in them (-1: not aimed at; a hash map's lookups were 1.5% of a
+    // cornell-glass solve's samples).
+    struct Aims {
+        std::vector<int> patch;
+        std::vector<double> cdf;
+        std::vector<Aim> aim;
+        std::vector<int> index;
+        bool empty() const { return patch.empty(); }
+        const Aim* find(int p) const {
+            if (p < 0 || size_t(p) >= index.size() || index[size_t(p)] < 0) return nullptr;
+            return &aim[size_t(index[size_t(p)])];
+        }
+    };
+    Aims aims;       // by the light each patch sends into the object
+    Aims receivers;  // the patches paths are traced back from (SpecularSettings::receiverShare)
 };
 
 // Sorts by target and sums the entries of equal targets.
@@ -241,9 +247,9 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
             const auto [g, first] = blocks[size_t(bb)];
             const Group& group = groups[g];
             const Material& material = scene.materialOf(scene.objects[size_t(group.object)]);
-            const double aimed = group.aimPatch.empty() ? 0.0 : share;
+            const double aimed = group.aims.empty() ? 0.0 : share;
             // Paths traced back from the receivers: on spheres (the caps), where there are any.
-            const double back = group.sphere && !group.receiverPatch.empty() ? receiverShare : 0.0;
+            const double back = group.sphere && !group.receivers.empty() ? receiverShare : 0.0;
             const double N = double(group.paths);
             Rng rng = pairRng(settings.seed, Stream::SpecularTransport, g, uint64_t(first / kBlock));
             out.clear();
@@ -260,17 +266,16 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 const double cosX = n.dot(w);
                 double pdf = (1 - aimed) * cosX / kPi;
                 if (aimed > 0) {
-                    const auto a = group.aimDensity.find(from.patch);
-                    if (a != group.aimDensity.end())
-                        pdf += aimed * (group.sphere ? a->second.capFactor(n) : 1.0) * a->second.density * from.t *
-                               from.t / std::abs(from.normal.dot(w));
+                    if (const Group::Aim* a = group.aims.find(from.patch))
+                        pdf += aimed * (group.sphere ? a->capFactor(n) : 1.0) * a->density * from.t * from.t /
+                               std::abs(from.normal.dot(w));
                 }
                 return pdf / cosX;
             };
             auto backward = [&](const Vec3& n, const Vec3& r, const SurfaceHit& to) {
-                const auto a = group.receiverDensity.find(to.patch);
-                if (a == group.receiverDensity.end()) return 0.0;
-                return a->second.capFactor(n) * a->second.density * to.t * to.t / std::abs(to.normal.dot(r)) / n.dot(r);
+                const Group::Aim* a = group.receivers.find(to.patch);
+                if (!a) return 0.0;
+                return a->capFactor(n) * a->density * to.t * to.t / std::abs(to.normal.dot(r)) / n.dot(r);
             };
             // The point where the light left the ball towards `at` (along `along`), and the sphere's normal there.
             auto leaving = [&](const SurfaceHit& at, const Vec3& along) {
@@ -287,8 +292,9 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 if (int64_t(std::floor(double(k + 1) * back)) > backBefore) {
                     const auto [pa, pb, da, db] = scrambledSobol(uint32_t(backBefore), strategySeed[2]);
                     double within = 0;
-                    const int to = group.receiverPatch[pick(group.receiverCdf, da, within)];
-                    const Group::Aim& aimAt = group.receiverDensity.at(to);
+                    const size_t picked = pick(group.receivers.cdf, da, within);
+                    const int to = group.receivers.patch[picked];
+                    const Group::Aim& aimAt = group.receivers.aim[picked];
                     const Vec3 n = spherePoint(pa, pb, &aimAt);
                     SurfaceHit at;
                     at.found = true;
@@ -329,8 +335,9 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 double within = 0;
                 const Group::Aim* aimAt = nullptr;
                 if (aiming) {
-                    aim = group.aimPatch[pick(group.aimCdf, da, within)];
-                    aimAt = &group.aimDensity.at(aim);
+                    const size_t picked = pick(group.aims.cdf, da, within);
+                    aim = group.aims.patch[picked];
+                    aimAt = &group.aims.aim[picked];
                 }
                 SurfaceHit at;
                 at.found = true;
@@ -473,7 +480,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
     paths->start = std::move(distinct);
     for (const Group& g : groups) {
         paths->paths += g.paths;
-        paths->reversed = paths->reversed || (receiverShare > 0 && g.sphere && !g.receiverPatch.empty());
+        paths->reversed = paths->reversed || (receiverShare > 0 && g.sphere && !g.receivers.empty());
     }
     for (int64_t r : blockRays) paths->rays += r;
     logDebug("specular transport: paths traced in ", traceSeconds, " s, collated in ", collateTimer.seconds(), " s (",
@@ -548,24 +555,24 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
         }
         // A table of patches to aim at, by `by` (per patch and object): cumulative, normalised, and each
         // patch's chance per m^2, with the cap of a sphere that sees it.
-        auto table = [&](const std::vector<double>& by, size_t g, std::vector<int>& aimPatch,
-                         std::vector<double>& aimCdf, std::unordered_map<int, Group::Aim>& aimDensity) {
+        auto table = [&](const std::vector<double>& by, size_t g, Group::Aims& aims) {
             const Group& aim = groups[g];
-            aimPatch.clear();
-            aimCdf.clear();
-            aimDensity.clear();
+            aims = Group::Aims();
+            aims.index.assign(n, -1);
             double total = 0;
             for (size_t i = 0; i < n; ++i) {
                 if (!(by[i * K + g] > 0)) continue;
                 total += by[i * K + g];
-                aimPatch.push_back(int(i));
-                aimCdf.push_back(total);
+                aims.index[i] = int(aims.patch.size());
+                aims.patch.push_back(int(i));
+                aims.cdf.push_back(total);
             }
-            for (size_t k = 0; k < aimPatch.size(); ++k) {
-                const double before = k ? aimCdf[k - 1] : 0;
-                const size_t i = size_t(aimPatch[k]);
-                Group::Aim& a = aimDensity[int(i)];
-                a.density = (aimCdf[k] - before) / total / patches.area[i];
+            aims.aim.resize(aims.patch.size());
+            for (size_t k = 0; k < aims.patch.size(); ++k) {
+                const double before = k ? aims.cdf[k - 1] : 0;
+                const size_t i = size_t(aims.patch[k]);
+                Group::Aim& a = aims.aim[k];
+                a.density = (aims.cdf[k] - before) / total / patches.area[i];
                 if (aim.sphere) {
                     const Vec3 towards = patches.centroid[i] - aim.sphere->center;
                     const double d = towards.norm();
@@ -573,10 +580,11 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                     a.cosCap = d > aim.sphere->radius ? std::min(aim.sphere->radius / d, 1 - 1e-9) : 0.0;
                 }
             }
-            for (double& c : aimCdf) c /= total;
+            for (double& c : aims.cdf) c /= total;
+            if (aims.patch.empty()) aims.index.clear();
         };
         auto aimBy = [&](const std::vector<double>& by) {
-            for (size_t g = 0; g < K; ++g) table(by, g, groups[g].aimPatch, groups[g].aimCdf, groups[g].aimDensity);
+            for (size_t g = 0; g < K; ++g) table(by, g, groups[g].aims);
         };
         // The receivers paths are traced back from: every diffuse object that sees the ball and reflects,
         // each as often as any other, over its patches by their etendue to the ball (A_j F(j, o)).
@@ -597,8 +605,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                         if (s > 0) by[j * K + g] = patches.area[j] * share[j * K + g] / s;
                     }
             for (size_t g = 0; g < K; ++g)
-                if (groups[g].sphere)
-                    table(by, g, groups[g].receiverPatch, groups[g].receiverCdf, groups[g].receiverDensity);
+                if (groups[g].sphere) table(by, g, groups[g].receivers);
         }
         aimBy(power);
         const int64_t total = std::max<int64_t>(1, seeing) * std::max(1, settings.pathsPerPatch);
