@@ -260,6 +260,21 @@ StageRatio formFactorRatio(const BenchResult& r) {
     return out;
 }
 
+StageRatio transportRatio(const BenchResult& r) {
+    std::vector<std::pair<double, const ObjectRun*>> runs;
+    for (const ObjectRun& o : r.objectRuns)
+        if (o.transportSeconds > 0 && o.transportRays > 0 && r.embree.intersect1 > 0)
+            runs.emplace_back(o.transportRays / o.transportSeconds / r.embree.intersect1, &o);
+    StageRatio out;
+    if (runs.empty()) return out;
+    std::sort(runs.begin(), runs.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    const auto& [ratio, m] = runs[runs.size() / 2];
+    out.median = ratio, out.low = runs.front().first, out.high = runs.back().first;
+    out.castRays = m->transportRays, out.seconds = m->transportSeconds;
+    out.runs = runs.size();
+    return out;
+}
+
 std::string summaryMarkdown(const BenchResult& r) {
     std::string md =
         cat("# Bench: ", r.scene, "\n\nMachine: ", r.machine, ". Images ", r.width, "x", r.height,
@@ -363,6 +378,11 @@ std::string summaryMarkdown(const BenchResult& r) {
                       percent(alone / r.formFactorSeconds), " |\n");
         }
     }
+    if (const StageRatio tr = transportRatio(r); tr.runs > 0)
+        md += cat("| specular transport (the paths' rays and bounces / stage seconds: ", fixed(tr.castRays / 1e6, 2),
+                  " M; median of ", tr.runs, " default solves, ", percent(tr.low), "-", percent(tr.high), ") | ",
+                  fixed(tr.castRays / tr.seconds / 1e6, 2), " M rays/s | Embree nearest hit ",
+                  fixed(r.embree.intersect1 / 1e6, 2), " M rays/s | ", percent(tr.median), " |\n");
     if (r.gatherSeconds > 0)
         md += cat("| final gather (rays / render seconds) | ", fixed(r.gatherRays / r.gatherSeconds / 1e6, 2),
                   " M rays/s | Embree nearest hit ", fixed(e.intersect1 / 1e6, 2), " M rays/s | ",
@@ -428,6 +448,11 @@ std::string benchJson(const BenchResult& r) {
                              {"seconds", f.seconds},       {"rays_per_s", (f.visibilityRays + f.castRays) / f.seconds},
                              {"over_embree", f.median},    {"over_embree_low", f.low},
                              {"over_embree_high", f.high}, {"solves", f.runs}};
+    if (const StageRatio tr = transportRatio(r); tr.runs > 0)
+        j["specular_transport"] = {
+            {"rays", tr.castRays},      {"seconds", tr.seconds},     {"rays_per_s", tr.castRays / tr.seconds},
+            {"over_embree", tr.median}, {"over_embree_low", tr.low}, {"over_embree_high", tr.high},
+            {"solves", tr.runs}};
     if (r.gatherSeconds > 0)
         j["final_gather"] = {{"rays", r.gatherRays},
                              {"seconds", r.gatherSeconds},

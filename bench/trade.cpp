@@ -345,6 +345,9 @@ void Bench::measureObjects(BenchResult& result) {
         run.formFactorSeconds = r.secondsFormFactors;
         run.castRays = double(r.counters.at("form_factors.cast_rays"));
         run.visibilityRays = double(r.counters.at("form_factors.visibility_rays"));
+        run.transportSeconds = r.secondsSpecular;
+        if (const auto t = r.counters.find("specular.rays"); t != r.counters.end())
+            run.transportRays = double(t->second);
         const std::vector<Rgb> mean = objectRadiosity(r, scene_.objects.size());
         for (size_t k = 0; k < mean.size(); ++k) {
             if (reference[k].samples == 0 || !(reference[k].radiosity.sum() > 0)) continue;

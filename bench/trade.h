@@ -83,6 +83,9 @@ struct ObjectRun {
     double worstStated = 0;  // that object's relative_error_estimate
     // Its form-factor stage: seconds, cast (nearest-hit) rays and visibility (occlusion) rays.
     double formFactorSeconds = 0, castRays = 0, visibilityRays = 0;
+    // Its specular transport (scenes with mirrors or glass): seconds, and the paths' rays and bounces
+    // (nearest-hit; a chord inside an exact ball is solved, not traced, and counts too).
+    double transportSeconds = 0, transportRays = 0;
 };
 
 struct BenchResult {
@@ -113,6 +116,9 @@ struct StageRatio {
     size_t runs = 0;
 };
 StageRatio formFactorRatio(const BenchResult& result);
+// The specular transport's rays per second over Embree's nearest-hit rate, likewise (castRays: its
+// rays); `runs` 0 on a scene without mirrors or glass.
+StageRatio transportRatio(const BenchResult& result);
 
 // A setting in a few words ("1000 patches, 8 spp, 16 gather rays"): what differs from the defaults.
 std::string settingText(const Setting& s);

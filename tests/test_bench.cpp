@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "bench/trade.h"
 #include "fixtures.h"
 
 using namespace penumbra;
@@ -111,4 +112,24 @@ TEST(Bench, RefusesASceneWithoutCameraBeforeWritingAnything) {
     EXPECT_EQ(bad.status, 1) << bad.output;
     EXPECT_NE(bad.output.find("--resolution"), std::string::npos) << bad.output;
     EXPECT_FALSE(fs::exists(out));
+}
+
+// The summary's transport row: each default solve's rays over its stage seconds, over Embree's
+// nearest-hit rate, the median of the solves (and their range); none on a scene without mirrors.
+TEST(Bench, TheTransportsRateIsItsRaysOverEmbreesNearestHitRate) {
+    bench::BenchResult r;
+    r.embree.intersect1 = 10e6;
+    EXPECT_EQ(bench::transportRatio(r).runs, 0u);
+    for (const auto& [rays, seconds] : std::vector<std::pair<double, double>>{{6e5, 0.1}, {6e5, 0.2}, {8e5, 0.1}}) {
+        bench::ObjectRun o;
+        o.transportRays = rays, o.transportSeconds = seconds;
+        r.objectRuns.push_back(o);
+    }
+    r.objectRuns.push_back(bench::ObjectRun());  // a solve without a transport is left out
+    const bench::StageRatio t = bench::transportRatio(r);
+    EXPECT_EQ(t.runs, 3u);
+    EXPECT_DOUBLE_EQ(t.median, 0.6);  // 6 M rays/s of 10
+    EXPECT_DOUBLE_EQ(t.low, 0.3);
+    EXPECT_DOUBLE_EQ(t.high, 0.8);
+    EXPECT_DOUBLE_EQ(t.castRays / t.seconds, 6e6);
 }
