@@ -98,6 +98,7 @@ struct Group {
         std::vector<int> patch;
         std::vector<double> cdf;
         std::vector<Aim> aim;
+        std::vector<PatchPointSampler> point;  // points on each patch (its triangles found once)
         std::vector<int> index;
         bool empty() const { return patch.empty(); }
         const Aim* find(int p) const {
@@ -302,7 +303,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                     at.material = &material;
                     at.normal = n;
                     at.point = group.sphere->center + group.sphere->radius * n;
-                    const Vec3 r = (samplePatchPoint(patches, size_t(to), within, db, 0) - at.point).normalized();
+                    const Vec3 r = (group.receivers.point[picked](within, db) - at.point).normalized();
                     if (!(n.dot(r) > 0)) continue;
                     const SurfaceHit hit = tracer.trace(at.point + tracer.epsilon() * n, r);
                     ++rays;
@@ -332,10 +333,11 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 // A point on the surface and its side's normal; for an aimed path the patch aimed at
                 // first, and on a sphere a point of the cap that sees it.
                 int aim = -1;
+                size_t picked = 0;
                 double within = 0;
                 const Group::Aim* aimAt = nullptr;
                 if (aiming) {
-                    const size_t picked = pick(group.aims.cdf, da, within);
+                    picked = pick(group.aims.cdf, da, within);
                     aim = group.aims.patch[picked];
                     aimAt = &group.aims.aim[picked];
                 }
@@ -359,7 +361,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 // A direction out of the side: towards a point on the patch aimed at, or cosine-distributed.
                 Vec3 w;
                 if (aiming)
-                    w = (samplePatchPoint(patches, size_t(aim), within, db, 0) - at.point).normalized();
+                    w = (group.aims.point[picked](within, db) - at.point).normalized();
                 else
                     w = cosineDirection(n, da, db);
                 if (!(n.dot(w) > 0)) continue;
@@ -494,6 +496,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                                            const SceneTracer& tracer, const SpecularSettings& settings,
                                            const SpecularTransport* previous, const std::vector<double>& rowRays) {
     SpecularTransport out;
+    int64_t firstRays = 0;  // the first set's, which finds the caustics to aim at
     if (!tracer.hasSpecular()) return out;
     Timer timer;
     const size_t n = patches.size();
@@ -568,6 +571,8 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                 aims.cdf.push_back(total);
             }
             aims.aim.resize(aims.patch.size());
+            aims.point.reserve(aims.patch.size());
+            for (int i : aims.patch) aims.point.emplace_back(patches, size_t(i));
             for (size_t k = 0; k < aims.patch.size(); ++k) {
                 const double before = k ? aims.cdf[k - 1] : 0;
                 const size_t i = size_t(aims.patch[k]);
@@ -614,6 +619,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
             first.seed = mixSeed(settings.seed, 0xCA05);
             const auto lit = tracePaths(scene, patches, tracer, first, groups,
                                         std::max<int64_t>(1, int64_t(settings.causticShare * double(total))));
+            firstRays = lit->rays;
             // The light each patch receives from the lamps through the objects, W (the share of a
             // lamp's light a path carries there is its part of the lamp's paths' etendue).
             std::vector<double> received(n, 0.0);
@@ -809,9 +815,10 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
         logInfo("specular transport: the same ", paths.paths, " paths scaled to the rows cast again in ", out.seconds,
                 " s");
     } else {
-        g_transportRays.add(uint64_t(paths.rays));
+        g_transportRays.add(uint64_t(paths.rays + firstRays));
         logInfo("specular transport: ", K, " mirror/glass objects, ", paths.paths, " paths from their surfaces (",
-                paths.rays, " rays), ", out.outTarget.size(), " transfers in ", out.seconds, " s");
+                paths.rays, " rays; ", firstRays, " more first, to find the caustics), ", out.outTarget.size(),
+                " transfers in ", out.seconds, " s");
     }
     return out;
 }
