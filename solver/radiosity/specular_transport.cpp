@@ -16,7 +16,9 @@
 
 namespace penumbra {
 
-// What the paths found, summed per source patch: entries sorted by (group, kind, target).
+// What the paths found, summed per source patch: each one's entries sorted by (group, kind, target),
+// kept in the part of its bucket of sources where they were collated (a copy into one array was 5.6 MB
+// of fresh pages on cornell-glass, and a fresh page costs this machine about 10 us).
 struct SpecularPaths {
     enum Kind : uint8_t { Weight = 0, Delivered = 1, Lost = 2 };
     struct Entry {
@@ -27,10 +29,26 @@ struct SpecularPaths {
         double square = 0;  // sum of the paths' values squared (Weight: their etendue's; Delivered: channels' mean)
         double weight = 0;  // Weight: the paths' etendue from the source, m^2
     };
-    std::vector<size_t> start;  // per source patch, into entries
-    std::vector<Entry> entries;
+    struct Row {
+        const Entry *from, *to;
+        const Entry* begin() const { return from; }
+        const Entry* end() const { return to; }
+    };
+    std::vector<std::vector<Entry>> parts;            // per bucket of 2^shift sources
+    std::vector<std::pair<uint32_t, uint32_t>> span;  // per source patch, its entries in its bucket's part
+    int shift = 0;
     int64_t paths = 0, rays = 0;
     bool reversed = false;  // some paths were traced from the receivers (SpecularSettings::receiverShare)
+
+    Row row(size_t i) const {
+        const Entry* part = parts[i >> shift].data();
+        return {part + span[i].first, part + span[i].second};
+    }
+    size_t entries() const {
+        size_t count = 0;
+        for (const std::vector<Entry>& p : parts) count += p.size();
+        return count;
+    }
 
     // The factor, per channel, that brings what source i's entries deliver through group g (the balance
     // heuristic's sum over both directions) to what its paths from the ball's surface delivered: so each
@@ -38,8 +56,7 @@ struct SpecularPaths {
     Rgb deliveredScale(size_t i, int g) const {
         if (!reversed) return Rgb::Ones();
         Rgb reached = Rgb::Zero(), sum = Rgb::Zero();
-        for (size_t k = start[i]; k < start[i + 1]; ++k) {
-            const Entry& e = entries[k];
+        for (const Entry& e : row(i)) {
             if (e.group != g) continue;
             if (e.kind == Weight) reached += e.value;
             if (e.kind == Delivered) sum += e.value;
@@ -193,19 +210,27 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
     }
     const double share = std::clamp(settings.aimedShare, 0.0, 1.0);
     const double receiverShare = std::clamp(settings.receiverShare, 0.0, 0.95);
-    // What one path found, as compact as it goes (a cornell-glass solve writes about a million):
-    // summed in double once collated.
+    // What one path found, as compact as it goes (24 bytes; cornell-glass's paths write 366k): summed
+    // in double once collated, with the squares (a Weight's etendue's, a Delivered's channels' mean's)
+    // taken then.
     struct Found {
-        int source, target;
-        uint16_t group;
-        uint8_t kind;
-        float value[3], square, weight;
+        int source;
+        union {
+            int target;    // Delivered: the patch; Lost: the object
+            float weight;  // Weight: the path's etendue from the source, m^2
+        };
+        uint32_t group : 30, kind : 2;
+        float value[3];
     };
-    static_assert(std::is_trivial_v<Found>);
-    auto record = [](int source, size_t g, SpecularPaths::Kind kind, int target, const Rgb& v, double square,
-                     double weight = 0) {
-        return Found{source,        target,       uint16_t(g), uint8_t(kind), {float(v[0]), float(v[1]), float(v[2])},
-                     float(square), float(weight)};
+    static_assert(std::is_trivial_v<Found> && sizeof(Found) == 24);
+    auto record = [](int source, size_t g, SpecularPaths::Kind kind, int target, const Rgb& v) {
+        Found f;
+        f.source = source;
+        f.target = target;
+        f.group = uint32_t(g);
+        f.kind = kind;
+        for (int c = 0; c < 3; ++c) f.value[c] = float(v[c]);
+        return f;
     };
     // Each block's records, sorted while still in cache into buckets of 2^shift source patches
     // (bucketStart per block); a bucket's records are collated in cache afterwards. (A scatter of
@@ -320,8 +345,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                             if (!(nx.dot(w) > 0)) return;
                             const Rgb v =
                                 light * (group.area / (kPi * N * ((1 - back) * forward(nx, w, from) + qBack)));
-                            const double mean = v.sum() / 3;
-                            out.push_back(record(from.patch, g, SpecularPaths::Delivered, to, v, mean * mean));
+                            out.push_back(record(from.patch, g, SpecularPaths::Delivered, to, v));
                         });
                     continue;
                 }
@@ -377,7 +401,8 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 const double qForward = (1 - back) * forward(n, w, from);
                 const double weight = group.area / (kPi * N * qForward);
                 const size_t weightRecord = out.size();
-                out.push_back(record(from.patch, g, SpecularPaths::Weight, 0, Rgb::Zero(), weight * weight, weight));
+                out.push_back(record(from.patch, g, SpecularPaths::Weight, 0, Rgb::Zero()));
+                out.back().weight = float(weight);
                 // The light's walk on from the surface, split into every branch for the first
                 // settings.splitBounces bounces, then one branch by Fresnel's odds. What it delivers
                 // is weighed against the paths traced back from the receivers (its own share kept in
@@ -387,7 +412,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 followSpecular(
                     tracer, at, Vec3(-w), Rgb::Constant(weight), settings.maxDepth, settings.splitBounces, rng, rays,
                     [&](int object, const Rgb& part) {
-                        out.push_back(record(from.patch, g, SpecularPaths::Lost, object, part, 0.0));
+                        out.push_back(record(from.patch, g, SpecularPaths::Lost, object, part));
                     },
                     [&](const SurfaceHit& to, const Vec3& along, const Rgb& part) {
                         reached += part;
@@ -397,13 +422,9 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                             const double qBack = nr.dot(along) > 0 ? back * backward(nr, along, to) : 0.0;
                             mis = qForward / (qForward + qBack);
                         }
-                        const Rgb v = part * mis;
-                        const double mean = v.sum() / 3;
-                        out.push_back(record(from.patch, g, SpecularPaths::Delivered, to.patch, v, mean * mean));
+                        out.push_back(record(from.patch, g, SpecularPaths::Delivered, to.patch, Rgb(part * mis)));
                     });
-                const Rgb value = reached;
-                out[weightRecord].value[0] = float(value[0]), out[weightRecord].value[1] = float(value[1]),
-                out[weightRecord].value[2] = float(value[2]);
+                for (int c = 0; c < 3; ++c) out[weightRecord].value[c] = float(reached[c]);
             }
             // The block's records by bucket, stable (in path order within each).
             uint32_t* at = &bucketStart[size_t(bb) * (buckets + 1)];
@@ -419,74 +440,98 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
     const double traceSeconds = traceTimer.seconds();
     Timer collateTimer;
 
-    // By source patch, in block order (so the sums do not depend on the threads), then sorted by
-    // (group, kind, target) per source (std::sort: the same order for the same input) and summed;
-    // a bucket of sources at a time, each bucket's entries then copied into place.
+    // Summed by (source, group, kind, target) through a hash table a bucket of sources at a time, in
+    // block order and within a block in path order (so the sums do not depend on the threads); then
+    // each source's sums sorted by (group, kind, target) into the bucket's part of the entries. (Each
+    // source's records sorted and summed instead: 14 ms of the threads' time on cornell-glass.)
     auto paths = std::make_shared<SpecularPaths>();
-    auto key = [](const Found& f) { return std::make_tuple(f.group, f.kind, f.target); };
-    std::vector<size_t> distinct(patchCount + 1, 0);
-    std::vector<std::vector<Entry>> bucketEntries(buckets);
+    paths->shift = shift;
+    paths->parts.resize(buckets);
+    paths->span.assign(patchCount, {0, 0});
+    auto key = [](const Found& f) {
+        return uint64_t(f.group) << 34 | uint64_t(f.kind) << 32 |
+               (f.kind == SpecularPaths::Weight ? 0 : uint64_t(uint32_t(f.target)));
+    };
     int64_t records = 0;
     for (size_t bb = 0; bb < blocks.size(); ++bb) records += int64_t(found[bb].size());
+    struct Sum {
+        uint64_t key;
+        uint32_t source;  // from the bucket's first
+        Entry entry;
+    };
     parallelFor(int64_t(buckets), [&](int64_t begin, int64_t end) {
-        std::vector<Found> local;
-        std::vector<size_t> count;
+        std::vector<int32_t> table;
+        std::vector<Sum> sums;
+        std::vector<uint32_t> count, order;
         for (int64_t b = begin; b < end; ++b) {
             const size_t first = size_t(b) << shift,
                          sources = std::min(patchCount, first + (size_t(1) << shift)) - first;
             if (first >= patchCount) continue;
-            count.assign(sources + 1, 0);
             size_t held = 0;
             for (size_t bb = 0; bb < blocks.size(); ++bb) {
                 const uint32_t* at = &bucketStart[bb * (buckets + 1) + size_t(b)];
-                for (uint32_t r = at[0]; r < at[1]; ++r) ++count[size_t(found[bb][r].source) - first + 1];
                 held += at[1] - at[0];
             }
-            for (size_t i = 0; i < sources; ++i) count[i + 1] += count[i];
-            local.resize(held);
-            std::vector<size_t> fill(count.begin(), count.end() - 1);
+            int bits = 4;
+            while ((size_t(1) << bits) < 2 * held) ++bits;
+            const size_t mask = (size_t(1) << bits) - 1;
+            table.assign(mask + 1, -1);
+            sums.clear();
             for (size_t bb = 0; bb < blocks.size(); ++bb) {
                 const uint32_t* at = &bucketStart[bb * (buckets + 1) + size_t(b)];
                 for (uint32_t r = at[0]; r < at[1]; ++r) {
                     const Found& f = found[bb][r];
-                    local[fill[size_t(f.source) - first]++] = f;
+                    const uint64_t k = key(f);
+                    const auto source = uint32_t(size_t(f.source) - first);
+                    size_t h = size_t(((k ^ (uint64_t(source) << 40)) * 0x9E3779B97F4A7C15ull) >> (64 - bits));
+                    while (table[h] >= 0 &&
+                           (sums[size_t(table[h])].key != k || sums[size_t(table[h])].source != source))
+                        h = (h + 1) & mask;
+                    const auto kind = SpecularPaths::Kind(f.kind);
+                    if (table[h] < 0) {
+                        table[h] = int32_t(sums.size());
+                        sums.push_back({k,
+                                        source,
+                                        {int(f.group), kind, kind == SpecularPaths::Weight ? 0 : f.target, Rgb::Zero(),
+                                         0.0, 0.0}});
+                    }
+                    Entry& e = sums[size_t(table[h])].entry;
+                    const Rgb v(f.value[0], f.value[1], f.value[2]);
+                    e.value += v;
+                    if (kind == SpecularPaths::Weight) {
+                        e.weight += f.weight;
+                        e.square += double(f.weight) * f.weight;
+                    } else if (kind == SpecularPaths::Delivered) {
+                        const double mean = v.sum() / 3;
+                        e.square += mean * mean;
+                    }
                 }
             }
-            std::vector<Entry>& entries = bucketEntries[size_t(b)];
-            for (size_t i = 0; i < sources; ++i) {
-                Found *from = local.data() + count[i], *to = local.data() + count[i + 1];
-                std::sort(from, to, [&](const Found& x, const Found& y) { return key(x) < key(y); });
-                for (const Found* f = from; f != to; ++f) {
-                    if (f == from || key(f[-1]) != key(*f)) {
-                        entries.push_back({f->group, SpecularPaths::Kind(f->kind), f->target, Rgb::Zero(), 0.0, 0.0});
-                        ++distinct[first + i + 1];
-                    }
-                    Entry& e = entries.back();
-                    e.value += Rgb(f->value[0], f->value[1], f->value[2]);
-                    e.square += f->square;
-                    e.weight += f->weight;
-                }
+            count.assign(sources + 1, 0);
+            for (const Sum& x : sums) ++count[x.source + 1];
+            for (size_t i = 0; i < sources; ++i) count[i + 1] += count[i];
+            order.resize(sums.size());
+            for (size_t x = 0; x < sums.size(); ++x) order[count[sums[x].source]++] = uint32_t(x);
+            std::vector<Entry>& entries = paths->parts[size_t(b)];
+            entries.reserve(sums.size());
+            for (size_t i = 0, from = 0; i < sources; from = count[i++]) {
+                // count[i] is now where source i's sums end
+                std::sort(order.begin() + ptrdiff_t(from), order.begin() + ptrdiff_t(count[i]),
+                          [&](uint32_t x, uint32_t y) { return sums[x].key < sums[y].key; });
+                paths->span[first + i].first = uint32_t(entries.size());
+                for (size_t x = from; x < count[i]; ++x) entries.push_back(sums[order[x]].entry);
+                paths->span[first + i].second = uint32_t(entries.size());
             }
         }
     });
     found = {};
-    for (size_t i = 0; i < patchCount; ++i) distinct[i + 1] += distinct[i];
-    paths->entries.resize(distinct[patchCount]);
-    parallelFor(int64_t(buckets), [&](int64_t begin, int64_t end) {
-        for (int64_t b = begin; b < end; ++b) {
-            const size_t first = std::min(patchCount, size_t(b) << shift);
-            std::copy(bucketEntries[size_t(b)].begin(), bucketEntries[size_t(b)].end(),
-                      paths->entries.begin() + ptrdiff_t(distinct[first]));
-        }
-    });
-    paths->start = std::move(distinct);
     for (const Group& g : groups) {
         paths->paths += g.paths;
         paths->reversed = paths->reversed || (receiverShare > 0 && g.sphere && !g.receivers.empty());
     }
     for (int64_t r : blockRays) paths->rays += r;
     logDebug("specular transport: paths traced in ", traceSeconds, " s, collated in ", collateTimer.seconds(), " s (",
-             records, " records, ", paths->entries.size(), " entries)");
+             records, " records, ", paths->entries(), " entries)");
     return paths;
 }
 
@@ -625,8 +670,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
             std::vector<double> received(n, 0.0);
             for (size_t i = 0; i < n; ++i) {
                 std::vector<double> perEtendue(K, 0.0);
-                for (size_t k = lit->start[i]; k < lit->start[i + 1]; ++k) {
-                    const SpecularPaths::Entry& e = lit->entries[k];
+                for (const SpecularPaths::Entry& e : lit->row(i)) {
                     const size_t g = size_t(e.group);
                     if (e.kind == SpecularPaths::Weight)
                         perEtendue[g] = e.weight > 0 ? power[i * K + g] / e.weight : 0.0;
@@ -674,8 +718,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                 std::fill(scale.begin(), scale.end(), 0.0);
                 RowResult& row = rows[i];
                 double* shared = &out.share[i * K];
-                for (size_t k = paths.start[i]; k < paths.start[i + 1]; ++k) {
-                    const SpecularPaths::Entry& e = paths.entries[k];
+                for (const SpecularPaths::Entry& e : paths.row(i)) {
                     const size_t g = size_t(e.group);
                     if (e.kind == SpecularPaths::Weight) {
                         double f = s[g];
@@ -737,8 +780,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                     }
                     double scale = 0;  // of the near row's paths, per unit of this row's share
                     const Rgb reach = paths.deliveredScale(near, int(g));
-                    for (size_t k = paths.start[near]; k < paths.start[near + 1]; ++k) {
-                        const SpecularPaths::Entry& e = paths.entries[k];
+                    for (const SpecularPaths::Entry& e : paths.row(near)) {
                         if (size_t(e.group) != g) continue;
                         if (e.kind == SpecularPaths::Weight)
                             scale = f / e.weight;
