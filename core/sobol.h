@@ -60,6 +60,22 @@ inline uint32_t laineKarras(uint32_t x, uint32_t seed) {
     return x;
 }
 
+// The four dimensions' direction numbers XORed over each value of each byte of the index: a
+// point's unscrambled bits are then four lookups (16 KiB of tables), where a loop over the index's 32
+// bits was 2.3% of a cornell-glass solve's samples.
+struct ByteTables {
+    alignas(16) uint32_t t[4][256][4];
+    constexpr ByteTables() : t{} {
+        for (int byte = 0; byte < 4; ++byte)
+            for (int value = 0; value < 256; ++value)
+                for (int bit = 0; bit < 8; ++bit)
+                    if ((value >> bit) & 1)
+                        for (int d = 0; d < 4; ++d) t[byte][value][d] ^= kDirections.v[d][8 * byte + bit];
+    }
+};
+
+inline constexpr ByteTables kByteTables{};
+
 }  // namespace sobol_detail
 
 // Owen's nested uniform scramble of a 32-bit fraction: each bit flipped as a hash of the bits above it.
@@ -68,15 +84,13 @@ inline uint32_t owenScramble(uint32_t x, uint32_t seed) {
     return reverseBits(laineKarras(reverseBits(x), seed));
 }
 
-// Point `index` of the Sobol set in dimension d (0-3), unscrambled, as a 32-bit fraction.
 // The four dimensions' unscrambled points at `index`: the XOR of the direction numbers of its set
-// bits, without a branch per bit (a scrambled index's bits are random: branching on them
-// mispredicted half of 128 times a point).
+// bits, a byte at a time.
 inline std::array<uint32_t, 4> sobolBits(uint32_t index) {
     std::array<uint32_t, 4> x{};
-    for (int i = 0; i < 32; ++i) {
-        const uint32_t mask = 0u - ((index >> i) & 1u);
-        for (int d = 0; d < 4; ++d) x[std::size_t(d)] ^= sobol_detail::kDirections.v[d][i] & mask;
+    for (int byte = 0; byte < 4; ++byte) {
+        const uint32_t* t = sobol_detail::kByteTables.t[byte][(index >> (8 * byte)) & 0xFFu];
+        for (int d = 0; d < 4; ++d) x[std::size_t(d)] ^= t[d];
     }
     return x;
 }
