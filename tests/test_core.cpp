@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "core/counters.h"
+#include "core/cumulative.h"
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "core/sobol.h"
@@ -57,6 +58,33 @@ TEST(Counters, ASolveCountsWhatItsGeometryImplies) {
     EXPECT_EQ(r.counters.at("rays.scenes_built"), 1u);
     EXPECT_EQ(r.counters.at("specular.rays"), 0u) << "no mirrors or glass";
     EXPECT_GE(r.counters.at("rays.occlusion"), r.counters.at("form_factors.visibility_rays"));
+}
+
+// A pick through the guide table is the entry a binary search over the whole table finds, on tables
+// with empty entries (zero weight), runs of them, one entry, and numbers on the cells' edges.
+TEST(CumulativeTable, PicksTheEntryABinarySearchFinds) {
+    Rng rng(11);
+    for (int table = 0; table < 200; ++table) {
+        const size_t n = table == 0 ? 1 : 1 + rng.next() % (table < 100 ? 9 : 3000);
+        std::vector<double> cdf;
+        double total = 0;
+        for (size_t k = 0; k < n; ++k) cdf.push_back(total += rng.uniform() < 0.3 ? 0.0 : rng.uniform());
+        if (!(total > 0)) continue;
+        for (double& c : cdf) c /= total;
+        cdf.back() = 1;
+        const CumulativeTable t(cdf);
+        std::vector<double> us = {0.0, 1.0, std::nextafter(1.0, 0.0)};
+        for (int k = 0; k < 64; ++k) us.push_back(double(k) / 64);
+        for (double c : cdf) us.push_back(c), us.push_back(std::nextafter(c, 0.0));
+        for (int k = 0; k < 1000; ++k) us.push_back(rng.uniform());
+        for (double u : us) {
+            const size_t want = std::min(size_t(std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin()), n - 1);
+            double within = -1;
+            ASSERT_EQ(t.pick(u, within), want) << "table " << table << " of " << n << ", u " << u;
+            EXPECT_GE(within, 0);
+            EXPECT_LE(within, 1);
+        }
+    }
 }
 
 // Sobol's first two dimensions are a (0, 2)-sequence: any aligned run of 2^m points puts exactly one

@@ -7,6 +7,7 @@
 #include <type_traits>
 
 #include "core/counters.h"
+#include "core/cumulative.h"
 #include "core/log.h"
 #include "core/optics.h"
 #include "core/parallel.h"
@@ -96,8 +97,8 @@ struct Group {
     int object = -1;
     const RaySphere* sphere = nullptr;  // traced exactly, or else its patches
     std::vector<size_t> patches;
-    std::vector<double> cdf;  // over the patches, by area
-    double area = 0;          // m^2 paths start from (both sides of an open surface)
+    CumulativeTable cdf;  // over the patches, by area (not on a sphere)
+    double area = 0;      // m^2 paths start from (both sides of an open surface)
     int64_t paths = 0;
     // On a sphere an aimed path starts in the cap that sees the aimed patch's centroid (pole, cos of
     // its angular radius): the rest of the sphere sees little or none of the patch.
@@ -105,15 +106,16 @@ struct Group {
         double density = 0;  // the patch's chance per m^2 of being aimed at
         Vec3 pole = Vec3::UnitZ();
         double cosCap = 0;
+        double inCap = 2;  // 2 / (1 - cosCap)
         // How much denser than uniform over the sphere aimed points are at normal n (0 outside the cap).
-        double capFactor(const Vec3& n) const { return n.dot(pole) >= cosCap ? 2 / (1 - cosCap) : 0.0; }
+        double capFactor(const Vec3& n) const { return n.dot(pole) >= cosCap ? inCap : 0.0; }
     };
     // Patches to aim at: `patch` picked by `cdf` (cumulative, normalised), each one's Aim, and per
     // patch of the scene its place in them (-1: not aimed at; a hash map's lookups were 1.5% of a
     // cornell-glass solve's samples).
     struct Aims {
         std::vector<int> patch;
-        std::vector<double> cdf;
+        CumulativeTable cdf;
         std::vector<Aim> aim;
         std::vector<PatchPointSampler> point;  // points on each patch (its triangles found once)
         std::vector<int> index;
@@ -242,13 +244,6 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
     std::vector<std::vector<Found>> found(blocks.size());
     std::vector<uint32_t> bucketStart(blocks.size() * (buckets + 1), 0);
     const uint64_t sobolSeed = streamSeed(settings.seed, Stream::SpecularTransport);
-    // Entry k of a cumulative distribution (normalised) that u falls in, and where in it (`within`, 0-1).
-    auto pick = [](const std::vector<double>& cdf, double u, double& within) {
-        const size_t k = std::min(size_t(std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin()), cdf.size() - 1);
-        const double lo = k ? cdf[k - 1] : 0.0, hi = cdf[k];
-        within = hi > lo ? std::clamp((u - lo) / (hi - lo), 0.0, 1.0) : 0.5;
-        return k;
-    };
     // A direction given about a pole, in the world.
     auto toWorld = [](const Vec3& local, const Vec3& pole) {
         Vec3 t, b;
@@ -318,7 +313,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 if (int64_t(std::floor(double(k + 1) * back)) > backBefore) {
                     const auto [pa, pb, da, db] = scrambledSobol(uint32_t(backBefore), strategySeed[2]);
                     double within = 0;
-                    const size_t picked = pick(group.receivers.cdf, da, within);
+                    const size_t picked = group.receivers.cdf.pick(da, within);
                     const int to = group.receivers.patch[picked];
                     const Group::Aim& aimAt = group.receivers.aim[picked];
                     const Vec3 n = spherePoint(pa, pb, &aimAt);
@@ -361,7 +356,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 double within = 0;
                 const Group::Aim* aimAt = nullptr;
                 if (aiming) {
-                    picked = pick(group.aims.cdf, da, within);
+                    picked = group.aims.cdf.pick(da, within);
                     aim = group.aims.patch[picked];
                     aimAt = &group.aims.aim[picked];
                 }
@@ -376,7 +371,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                     at.point = group.sphere->center + group.sphere->radius * n;
                 } else {
                     double u1 = 0;
-                    const size_t s = group.patches[pick(group.cdf, pa, u1)];
+                    const size_t s = group.patches[group.cdf.pick(pa, u1)];
                     at.point = samplePatchPoint(patches, s, u1, pb, 0);
                     at.patch = int(s);
                     at.normal = patches.normal[s];
@@ -557,17 +552,18 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
             groups.back().object = int(o);
             groups.back().sphere = tracer.exactSphere(int(o));
         }
-        Group& g = groups[size_t(group[o])];
         patchGroup[i] = group[o];
-        g.patches.push_back(i);
-        g.cdf.push_back((g.cdf.empty() ? 0 : g.cdf.back()) + patches.area[i]);
+        groups[size_t(group[o])].patches.push_back(i);
     }
     for (Group& g : groups) {
         if (g.sphere) {
             g.area = 4 * kPi * g.sphere->radius * g.sphere->radius;
         } else {
-            g.area = 2 * g.cdf.back();
-            for (double& c : g.cdf) c /= g.cdf.back();
+            std::vector<double> cdf;
+            for (size_t i : g.patches) cdf.push_back((cdf.empty() ? 0 : cdf.back()) + patches.area[i]);
+            g.area = 2 * cdf.back();
+            for (double& c : cdf) c /= g.area / 2;
+            g.cdf = CumulativeTable(std::move(cdf));
         }
     }
     const size_t K = groups.size();
@@ -608,29 +604,32 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
             aims = Group::Aims();
             aims.index.assign(n, -1);
             double total = 0;
+            std::vector<double> cdf;
             for (size_t i = 0; i < n; ++i) {
                 if (!(by[i * K + g] > 0)) continue;
                 total += by[i * K + g];
                 aims.index[i] = int(aims.patch.size());
                 aims.patch.push_back(int(i));
-                aims.cdf.push_back(total);
+                cdf.push_back(total);
             }
             aims.aim.resize(aims.patch.size());
             aims.point.reserve(aims.patch.size());
             for (int i : aims.patch) aims.point.emplace_back(patches, size_t(i));
             for (size_t k = 0; k < aims.patch.size(); ++k) {
-                const double before = k ? aims.cdf[k - 1] : 0;
+                const double before = k ? cdf[k - 1] : 0;
                 const size_t i = size_t(aims.patch[k]);
                 Group::Aim& a = aims.aim[k];
-                a.density = (aims.cdf[k] - before) / total / patches.area[i];
+                a.density = (cdf[k] - before) / total / patches.area[i];
                 if (aim.sphere) {
                     const Vec3 towards = patches.centroid[i] - aim.sphere->center;
                     const double d = towards.norm();
                     a.pole = towards / d;
                     a.cosCap = d > aim.sphere->radius ? std::min(aim.sphere->radius / d, 1 - 1e-9) : 0.0;
+                    a.inCap = 2 / (1 - a.cosCap);
                 }
             }
-            for (double& c : aims.cdf) c /= total;
+            for (double& c : cdf) c /= total;
+            aims.cdf = CumulativeTable(std::move(cdf));
             if (aims.patch.empty()) aims.index.clear();
         };
         auto aimBy = [&](const std::vector<double>& by) {
