@@ -22,13 +22,15 @@ namespace penumbra {
 // of fresh pages on cornell-glass, and a fresh page costs this machine about 10 us).
 struct SpecularPaths {
     enum Kind : uint8_t { Weight = 0, Delivered = 1, Lost = 2 };
+    // Summed in double, kept in float (32 bytes, where doubles took 56: cornell-glass has 101k).
     struct Entry {
-        int group;          // the mirror or glass object the light met first (index into the groups)
-        Kind kind;          // Weight: the paths' etendue from the source; else a fate
-        int target;         // patch (delivered) or object (lost)
-        Rgb value;          // m^2: etendue times the share that got there (Weight: what the same paths delivered)
-        double square = 0;  // sum of the paths' values squared (Weight: their etendue's; Delivered: channels' mean)
-        double weight = 0;  // Weight: the paths' etendue from the source, m^2
+        int group;             // the mirror or glass object the light met first (index into the groups)
+        Kind kind;             // Weight: the paths' etendue from the source; else a fate
+        int target;            // patch (delivered) or object (lost)
+        Eigen::Array3f value;  // m^2: etendue times the share that got there (Weight: what the same paths delivered)
+        float square = 0;      // sum of the paths' values squared (Weight: their etendue's; Delivered: channels' mean)
+        float weight = 0;      // Weight: the paths' etendue from the source, m^2
+        Rgb light() const { return value.cast<double>(); }
     };
     struct Row {
         const Entry *from, *to;
@@ -59,8 +61,8 @@ struct SpecularPaths {
         Rgb reached = Rgb::Zero(), sum = Rgb::Zero();
         for (const Entry& e : row(i)) {
             if (e.group != g) continue;
-            if (e.kind == Weight) reached += e.value;
-            if (e.kind == Delivered) sum += e.value;
+            if (e.kind == Weight) reached += e.light();
+            if (e.kind == Delivered) sum += e.light();
         }
         return (sum > 0).select(reached / sum.max(1e-300), Rgb::Ones());
     }
@@ -85,9 +87,9 @@ struct RowResult {
     void add(const SpecularPaths::Entry& e, double scale, const Rgb& reach) {
         if (e.kind == SpecularPaths::Delivered) {
             const double r = reach.sum() / 3;
-            delivered.push_back({e.target, Rgb(scale * reach * e.value), scale * scale * r * r * e.square});
+            delivered.push_back({e.target, Rgb(scale * reach * e.light()), scale * scale * r * r * e.square});
         } else {
-            lost.push_back({e.target, Rgb(scale * e.value)});
+            lost.push_back({e.target, Rgb(scale * e.light())});
         }
     }
 };
@@ -452,7 +454,8 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
     struct Sum {
         uint64_t key;
         uint32_t source;  // from the bucket's first
-        Entry entry;
+        Rgb value;
+        double square, weight;
     };
     parallelFor(int64_t(buckets), [&](int64_t begin, int64_t end) {
         std::vector<int32_t> table;
@@ -482,21 +485,17 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                     while (table[h] >= 0 &&
                            (sums[size_t(table[h])].key != k || sums[size_t(table[h])].source != source))
                         h = (h + 1) & mask;
-                    const auto kind = SpecularPaths::Kind(f.kind);
                     if (table[h] < 0) {
                         table[h] = int32_t(sums.size());
-                        sums.push_back({k,
-                                        source,
-                                        {int(f.group), kind, kind == SpecularPaths::Weight ? 0 : f.target, Rgb::Zero(),
-                                         0.0, 0.0}});
+                        sums.push_back({k, source, Rgb::Zero(), 0.0, 0.0});
                     }
-                    Entry& e = sums[size_t(table[h])].entry;
+                    Sum& e = sums[size_t(table[h])];
                     const Rgb v(f.value[0], f.value[1], f.value[2]);
                     e.value += v;
-                    if (kind == SpecularPaths::Weight) {
+                    if (f.kind == SpecularPaths::Weight) {
                         e.weight += f.weight;
                         e.square += double(f.weight) * f.weight;
-                    } else if (kind == SpecularPaths::Delivered) {
+                    } else if (f.kind == SpecularPaths::Delivered) {
                         const double mean = v.sum() / 3;
                         e.square += mean * mean;
                     }
@@ -514,7 +513,11 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 std::sort(order.begin() + ptrdiff_t(from), order.begin() + ptrdiff_t(count[i]),
                           [&](uint32_t x, uint32_t y) { return sums[x].key < sums[y].key; });
                 paths->span[first + i].first = uint32_t(entries.size());
-                for (size_t x = from; x < count[i]; ++x) entries.push_back(sums[order[x]].entry);
+                for (size_t x = from; x < count[i]; ++x) {
+                    const Sum& e = sums[order[x]];
+                    entries.push_back({int(e.key >> 34), SpecularPaths::Kind((e.key >> 32) & 3), int(uint32_t(e.key)),
+                                       e.value.cast<float>(), float(e.square), float(e.weight)});
+                }
                 paths->span[first + i].second = uint32_t(entries.size());
             }
         }
@@ -674,7 +677,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                     if (e.kind == SpecularPaths::Weight)
                         perEtendue[g] = e.weight > 0 ? power[i * K + g] / e.weight : 0.0;
                     else if (e.kind == SpecularPaths::Delivered)
-                        received[size_t(e.target)] += perEtendue[g] * luminance(e.value);
+                        received[size_t(e.target)] += perEtendue[g] * luminance(e.light());
                 }
             }
             for (size_t j = 0; j < n; ++j) {
