@@ -8,6 +8,7 @@
 
 #include "core/counters.h"
 #include "core/cumulative.h"
+#include "core/error.h"
 #include "core/log.h"
 #include "core/optics.h"
 #include "core/parallel.h"
@@ -217,21 +218,21 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
     // What one path found, as compact as it goes (24 bytes; cornell-glass's paths write 366k): summed
     // in double once collated, with the squares (a Weight's etendue's, a Delivered's channels' mean's)
     // taken then.
+    // The object the light met first is the block's.
     struct Found {
-        int source;
+        uint32_t source : 30, kind : 2;
         union {
             int target;    // Delivered: the patch; Lost: the object
             float weight;  // Weight: the path's etendue from the source, m^2
         };
-        uint32_t group : 30, kind : 2;
         float value[3];
     };
-    static_assert(std::is_trivial_v<Found> && sizeof(Found) == 24);
-    auto record = [](int source, size_t g, SpecularPaths::Kind kind, int target, const Rgb& v) {
+    static_assert(std::is_trivial_v<Found> && sizeof(Found) == 20);
+    PENUMBRA_CHECK_OP(patches.size(), <, size_t(1) << 30);
+    auto record = [](int source, SpecularPaths::Kind kind, int target, const Rgb& v) {
         Found f;
-        f.source = source;
+        f.source = uint32_t(source);
         f.target = target;
-        f.group = uint32_t(g);
         f.kind = kind;
         for (int c = 0; c < 3; ++c) f.value[c] = float(v[c]);
         return f;
@@ -342,7 +343,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                             if (!(nx.dot(w) > 0)) return;
                             const Rgb v =
                                 light * (group.area / (kPi * N * ((1 - back) * forward(nx, w, from) + qBack)));
-                            out.push_back(record(from.patch, g, SpecularPaths::Delivered, to, v));
+                            out.push_back(record(from.patch, SpecularPaths::Delivered, to, v));
                         });
                     continue;
                 }
@@ -398,7 +399,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 const double qForward = (1 - back) * forward(n, w, from);
                 const double weight = group.area / (kPi * N * qForward);
                 const size_t weightRecord = out.size();
-                out.push_back(record(from.patch, g, SpecularPaths::Weight, 0, Rgb::Zero()));
+                out.push_back(record(from.patch, SpecularPaths::Weight, 0, Rgb::Zero()));
                 out.back().weight = float(weight);
                 // The light's walk on from the surface, split into every branch for the first
                 // settings.splitBounces bounces, then one branch by Fresnel's odds. What it delivers
@@ -409,7 +410,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 followSpecular(
                     tracer, at, Vec3(-w), Rgb::Constant(weight), settings.maxDepth, settings.splitBounces, rng, rays,
                     [&](int object, const Rgb& part) {
-                        out.push_back(record(from.patch, g, SpecularPaths::Lost, object, part));
+                        out.push_back(record(from.patch, SpecularPaths::Lost, object, part));
                     },
                     [&](const SurfaceHit& to, const Vec3& along, const Rgb& part) {
                         reached += part;
@@ -419,7 +420,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                             const double qBack = nr.dot(along) > 0 ? back * backward(nr, along, to) : 0.0;
                             mis = qForward / (qForward + qBack);
                         }
-                        out.push_back(record(from.patch, g, SpecularPaths::Delivered, to.patch, Rgb(part * mis)));
+                        out.push_back(record(from.patch, SpecularPaths::Delivered, to.patch, Rgb(part * mis)));
                     });
                 for (int c = 0; c < 3; ++c) out[weightRecord].value[c] = float(reached[c]);
             }
@@ -445,8 +446,8 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
     paths->shift = shift;
     paths->parts.resize(buckets);
     paths->span.assign(patchCount, {0, 0});
-    auto key = [](const Found& f) {
-        return uint64_t(f.group) << 34 | uint64_t(f.kind) << 32 |
+    auto key = [](const Found& f, size_t g) {
+        return uint64_t(g) << 34 | uint64_t(f.kind) << 32 |
                (f.kind == SpecularPaths::Weight ? 0 : uint64_t(uint32_t(f.target)));
     };
     int64_t records = 0;
@@ -479,7 +480,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 const uint32_t* at = &bucketStart[bb * (buckets + 1) + size_t(b)];
                 for (uint32_t r = at[0]; r < at[1]; ++r) {
                     const Found& f = found[bb][r];
-                    const uint64_t k = key(f);
+                    const uint64_t k = key(f, blocks[bb].first);
                     const auto source = uint32_t(size_t(f.source) - first);
                     size_t h = size_t(((k ^ (uint64_t(source) << 40)) * 0x9E3779B97F4A7C15ull) >> (64 - bits));
                     while (table[h] >= 0 &&
