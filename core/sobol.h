@@ -42,7 +42,7 @@ struct Directions {
 
 inline constexpr Directions kDirections{};
 
-inline uint32_t reverseBits(uint32_t x) {
+constexpr uint32_t reverseBits(uint32_t x) {
     x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
     x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
     x = ((x >> 4) & 0x0F0F0F0Fu) | ((x & 0x0F0F0F0Fu) << 4);
@@ -51,7 +51,7 @@ inline uint32_t reverseBits(uint32_t x) {
 }
 
 // A permutation of the bits in which each bit is flipped as a hash of the bits below it and the seed.
-inline uint32_t laineKarras(uint32_t x, uint32_t seed) {
+constexpr uint32_t laineKarras(uint32_t x, uint32_t seed) {
     x += seed;
     x ^= x * 0x6c50b47cu;
     x ^= x * 0xb82f1e52u;
@@ -76,6 +76,21 @@ struct ByteTables {
 
 inline constexpr ByteTables kByteTables{};
 
+// The same for the index's bits in reverse order, each entry's bits reversed too. Owen's scramble
+// works on reversed bits and reversal commutes with XOR, so a scrambled point is found with these
+// in half the reversals (ScrambledSobol).
+struct ReversedTables {
+    alignas(16) uint32_t t[4][256][4];
+    constexpr ReversedTables() : t{} {
+        for (int byte = 0; byte < 4; ++byte)
+            for (uint32_t value = 0; value < 256; ++value)
+                for (int d = 0; d < 4; ++d)
+                    t[byte][value][d] = reverseBits(kByteTables.t[3 - byte][reverseBits(value) >> 24][d]);
+    }
+};
+
+inline constexpr ReversedTables kReversedTables{};
+
 }  // namespace sobol_detail
 
 // Owen's nested uniform scramble of a 32-bit fraction: each bit flipped as a hash of the bits above it.
@@ -95,15 +110,40 @@ inline std::array<uint32_t, 4> sobolBits(uint32_t index) {
     return x;
 }
 
-inline std::array<double, 4> scrambledSobol(uint32_t index, uint64_t seed) {
-    const uint32_t s0 = uint32_t(seed), s1 = uint32_t(seed >> 32);
-    const std::array<uint32_t, 4> bits = sobolBits(owenScramble(index, s0 * 0x9E3779B9u + 0x7F4A7C15u));
-    std::array<double, 4> p{};
-    for (int d = 0; d < 4; ++d) {
-        const uint32_t dimSeed = sobol_detail::laineKarras(s1 ^ (0x85EBCA6Bu * uint32_t(d + 1)), s0 + uint32_t(d));
-        p[std::size_t(d)] = double(owenScramble(bits[std::size_t(d)], dimSeed)) * (1.0 / 4294967296.0);
+// One scrambled Sobol set: point `index` of the set of `seed`, its scrambles' seeds derived once.
+// The index is scrambled too (y = reversed index, hashed), then each dimension: the same points as
+// owenScramble applied to the index and to sobolBits of it, found from y's bytes in the reversed
+// tables without reversing back and forth.
+class ScrambledSobol {
+public:
+    explicit ScrambledSobol(uint64_t seed) {
+        const uint32_t s0 = uint32_t(seed), s1 = uint32_t(seed >> 32);
+        indexSeed_ = s0 * 0x9E3779B9u + 0x7F4A7C15u;
+        for (int d = 0; d < 4; ++d)
+            dimensionSeed_[std::size_t(d)] =
+                sobol_detail::laineKarras(s1 ^ (0x85EBCA6Bu * uint32_t(d + 1)), s0 + uint32_t(d));
     }
-    return p;
-}
+    std::array<double, 4> operator()(uint32_t index) const {
+        using namespace sobol_detail;
+        const uint32_t y = laineKarras(reverseBits(index), indexSeed_);
+        std::array<uint32_t, 4> reversed{};
+        for (int byte = 0; byte < 4; ++byte) {
+            const uint32_t* t = kReversedTables.t[byte][(y >> (8 * byte)) & 0xFFu];
+            for (int d = 0; d < 4; ++d) reversed[std::size_t(d)] ^= t[d];
+        }
+        std::array<double, 4> p{};
+        for (int d = 0; d < 4; ++d)
+            p[std::size_t(d)] =
+                double(reverseBits(laineKarras(reversed[std::size_t(d)], dimensionSeed_[std::size_t(d)]))) *
+                (1.0 / 4294967296.0);
+        return p;
+    }
+
+private:
+    uint32_t indexSeed_ = 0;
+    std::array<uint32_t, 4> dimensionSeed_{};
+};
+
+inline std::array<double, 4> scrambledSobol(uint32_t index, uint64_t seed) { return ScrambledSobol(seed)(index); }
 
 }  // namespace penumbra

@@ -127,6 +127,27 @@ TEST(Sobol, ByteTablesGiveTheDirectionNumbersOfTheSetBits) {
     }
 }
 
+// A scrambled point found through the reversed tables is Owen's scramble, as defined, of the
+// unscrambled point at the scrambled index.
+TEST(Sobol, ScrambledPointsAreOwensScrambleOfTheDefinition) {
+    Rng rng(5);
+    for (uint64_t seed : {1ull, 0x9E3779B97F4A7C15ull, 77ull}) {
+        const ScrambledSobol set(seed);
+        const uint32_t s0 = uint32_t(seed), s1 = uint32_t(seed >> 32);
+        for (int k = 0; k < 20000; ++k) {
+            const uint32_t index = k < 4096 ? uint32_t(k) : uint32_t(rng.next());
+            const std::array<uint32_t, 4> bits = sobolBits(owenScramble(index, s0 * 0x9E3779B9u + 0x7F4A7C15u));
+            const std::array<double, 4> p = set(index);
+            for (int d = 0; d < 4; ++d) {
+                const uint32_t dimensionSeed =
+                    sobol_detail::laineKarras(s1 ^ (0x85EBCA6Bu * uint32_t(d + 1)), s0 + uint32_t(d));
+                ASSERT_EQ(p[size_t(d)], double(owenScramble(bits[size_t(d)], dimensionSeed)) / 4294967296.0)
+                    << "index " << index << ", dimension " << d;
+            }
+        }
+    }
+}
+
 // Each scrambled point is uniform on its own, so a mean over the points is unbiased; and the set
 // stratifies a discontinuous integrand far better than independent points. The share of [0, 1)^4 in
 // which (x - 1/2)^2 + (y - 1/2)^2 < 1/9 in dimensions 2 and 3 and x < 0.6 in dimension 0 is

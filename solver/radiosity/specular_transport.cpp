@@ -204,10 +204,11 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
     };
     double area = 0;
     for (const Group& g : groups) area += density(g);
-    constexpr int64_t kBlock = 1024;
+    // Whole blocks of 1,024 (256 for a small set, such as the first: so the two threads share it
+    // evenly): each strategy's points in a block are an aligned run of its Sobol set, a net.
+    const int64_t kBlock = total < 65536 ? 256 : 1024;
     std::vector<std::pair<size_t, int64_t>> blocks;  // group, first path
     for (size_t g = 0; g < groups.size(); ++g) {
-        // Whole blocks of 1,024: each strategy's points in a block are an aligned run of its Sobol set, a net.
         groups[g].paths =
             kBlock *
             std::max<int64_t>(1, (int64_t(std::ceil(double(total) * density(groups[g]) / area)) + kBlock / 2) / kBlock);
@@ -278,8 +279,9 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
             Rng rng = pairRng(settings.seed, Stream::SpecularTransport, g, uint64_t(first / kBlock));
             out.clear();
             int64_t& rays = blockRays[size_t(bb)];
-            const uint64_t strategySeed[3] = {mixSeed(sobolSeed, g, 0), mixSeed(sobolSeed, g, 1),
-                                              mixSeed(sobolSeed, g, 2)};  // cosine, aimed, traced back
+            const ScrambledSobol strategy[3] = {
+                ScrambledSobol(mixSeed(sobolSeed, g, 0)), ScrambledSobol(mixSeed(sobolSeed, g, 1)),
+                ScrambledSobol(mixSeed(sobolSeed, g, 2))};  // cosine, aimed, traced back
             // The densities of a path's two ends over the etendue at the ball's surface (per m^2 per
             // steradian of projected solid angle, relative to uniform points): from the ball's surface at
             // x (normal n) along w to the source `from` (cosine and aimed mixed), and back from x'
@@ -314,7 +316,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 // 1.05% rms, their noise the floor's light that the glass ball carries up to them.)
                 const int64_t backBefore = int64_t(std::floor(double(k) * back));
                 if (int64_t(std::floor(double(k + 1) * back)) > backBefore) {
-                    const auto [pa, pb, da, db] = scrambledSobol(uint32_t(backBefore), strategySeed[2]);
+                    const auto [pa, pb, da, db] = strategy[2](uint32_t(backBefore));
                     double within = 0;
                     const size_t picked = group.receivers.cdf.pick(da, within);
                     const int to = group.receivers.patch[picked];
@@ -350,8 +352,7 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
                 const int64_t kf = k - backBefore;
                 const int64_t before = int64_t(std::floor(double(kf) * aimed));
                 const bool aiming = int64_t(std::floor(double(kf + 1) * aimed)) > before;
-                const auto [pa, pb, da, db] =
-                    scrambledSobol(uint32_t(aiming ? before : kf - before), strategySeed[aiming]);
+                const auto [pa, pb, da, db] = strategy[aiming](uint32_t(aiming ? before : kf - before));
                 // A point on the surface and its side's normal; for an aimed path the patch aimed at
                 // first, and on a sphere a point of the cap that sees it.
                 int aim = -1;
