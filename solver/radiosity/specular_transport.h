@@ -71,6 +71,7 @@ struct SpecularTransport {
     std::vector<size_t> outStart;
     std::vector<int> outTarget;
     std::vector<Rgb> outWeight;
+    std::vector<double> outSquare;
     // Shares of patch i's light absorbed on the way (by a mirror, a glass tint or a back face), per
     // object, by source patch.
     std::vector<size_t> lossStart;
@@ -90,6 +91,9 @@ struct SpecularTransport {
     std::vector<double> share;
     std::vector<int> patchGroup;
     size_t groups = 0;
+    // Per row, what its fates were made from (its shares F(i, o), its rays, its exposed part; groups
+    // + 2 each): a later call copies the fates of rows whose inputs are the same.
+    std::vector<double> rowInputs;
 
     bool empty() const { return inStart.empty(); }
     // The variance the paths leave in incoming(j, B) (b: the mean of B's channels): a compound Poisson
