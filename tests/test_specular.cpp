@@ -12,6 +12,7 @@
 #include "fixtures.h"
 #include "render/integrators.h"
 #include "solver/caustic_grading.h"
+#include "solver/radiosity/ray_form_factors.h"
 
 using namespace penumbra;
 
@@ -178,6 +179,49 @@ TEST(SpecularTransport, RowsCastAgainAreTracedAgainThroughTheirMirrors) {
         checked += share > 0;
     }
     EXPECT_GT(checked, 100);
+}
+
+// When rows are cast again, rows whose shares, rays and exposed part did not change keep their fates
+// by copy: the same, to the last bit, as summing them again from the same paths (a copy that
+// misplaced one row's range, or took another row's shares, fails here).
+TEST(SpecularTransport, UnchangedRowsKeepTheFatesTheirPathsGive) {
+    const Scene scene = test::sceneFromJson(test::furnaceCube(
+        0.9, R"({"type": "dielectric", "ior": 1.5})", true,
+        R"(, {"name": "ball", "type": "sphere", "material": "m", "center": [0.5, 0.4, 0.5], "radius": 0.2})"));
+    MeshingOptions meshing;
+    meshing.targetPatches = 300;
+    const PatchSet patches = meshScene(scene, meshing);
+    const auto rays = buildRayScene(scene, patches);
+    FormFactorSettings cast;
+    cast.raysPerPatch = 64;
+    const FormFactorMatrix F = castFormFactors(patches, *rays, cast);
+    const SceneTracer tracer(scene, patches, rays);
+    SpecularSettings settings;
+    settings.pathsPerPatch = 64;
+    const std::vector<double> rowRays(patches.size(), 64.0);
+    const SpecularTransport first = computeSpecularTransport(scene, patches, F, tracer, settings, nullptr, rowRays);
+    ASSERT_FALSE(first.empty());
+    SpecularTransport forgotten = first;  // the same paths, every row summed again
+    forgotten.rowInputs.clear();
+    const SpecularTransport copied = computeSpecularTransport(scene, patches, F, tracer, settings, &first, rowRays);
+    const SpecularTransport summed = computeSpecularTransport(scene, patches, F, tracer, settings, &forgotten, rowRays);
+    auto expectSame = [](const SpecularTransport& a, const SpecularTransport& b) {
+        EXPECT_EQ(a.outStart, b.outStart);
+        EXPECT_EQ(a.outTarget, b.outTarget);
+        EXPECT_EQ(a.outSquare, b.outSquare);
+        EXPECT_EQ(a.lossStart, b.lossStart);
+        EXPECT_EQ(a.lossObject, b.lossObject);
+        EXPECT_EQ(a.inStart, b.inStart);
+        EXPECT_EQ(a.inSource, b.inSource);
+        EXPECT_EQ(a.share, b.share);
+        EXPECT_EQ(a.rowUnresolved, b.rowUnresolved);
+        ASSERT_EQ(a.outWeight.size(), b.outWeight.size());
+        for (size_t k = 0; k < a.outWeight.size(); ++k) ASSERT_TRUE((a.outWeight[k] == b.outWeight[k]).all()) << k;
+        ASSERT_EQ(a.lossShare.size(), b.lossShare.size());
+        for (size_t k = 0; k < a.lossShare.size(); ++k) ASSERT_TRUE((a.lossShare[k] == b.lossShare[k]).all()) << k;
+    };
+    expectSame(copied, summed);
+    expectSame(copied, first);
 }
 
 // A small lamp under a mirror ball: the share of the lamp's light that meets the ball is the
