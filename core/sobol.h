@@ -60,32 +60,20 @@ constexpr uint32_t laineKarras(uint32_t x, uint32_t seed) {
     return x;
 }
 
-// The four dimensions' direction numbers XORed over each value of each byte of the index: a
-// point's unscrambled bits are then four lookups (16 KiB of tables), where a loop over the index's 32
-// bits was 2.3% of a cornell-glass solve's samples.
-struct ByteTables {
-    alignas(16) uint32_t t[4][256][4];
-    constexpr ByteTables() : t{} {
-        for (int byte = 0; byte < 4; ++byte)
-            for (int value = 0; value < 256; ++value)
-                for (int bit = 0; bit < 8; ++bit)
-                    if ((value >> bit) & 1)
-                        for (int d = 0; d < 4; ++d) t[byte][value][d] ^= kDirections.v[d][8 * byte + bit];
-    }
-};
-
-inline constexpr ByteTables kByteTables{};
-
-// The same for the index's bits in reverse order, each entry's bits reversed too. Owen's scramble
-// works on reversed bits and reversal commutes with XOR, so a scrambled point is found with these
-// in half the reversals (ScrambledSobol).
+// Owen's scramble works on the bits of an index and of a point reversed, and reversal commutes with
+// XOR. So per byte of a reversed index and per value of it: the four dimensions' direction numbers
+// of its set bits (bit p of the reversed index is bit 31 - p of the index), each reversed, XORed. A
+// scrambled point is then four lookups (16 KiB of tables) and half the reversals (ScrambledSobol),
+// where a loop over the index's 32 bits was 2.3% of a cornell-glass solve's samples.
 struct ReversedTables {
     alignas(16) uint32_t t[4][256][4];
     constexpr ReversedTables() : t{} {
         for (int byte = 0; byte < 4; ++byte)
-            for (uint32_t value = 0; value < 256; ++value)
-                for (int d = 0; d < 4; ++d)
-                    t[byte][value][d] = reverseBits(kByteTables.t[3 - byte][reverseBits(value) >> 24][d]);
+            for (int value = 0; value < 256; ++value)
+                for (int bit = 0; bit < 8; ++bit)
+                    if ((value >> bit) & 1)
+                        for (int d = 0; d < 4; ++d)
+                            t[byte][value][d] ^= reverseBits(kDirections.v[d][31 - (8 * byte + bit)]);
     }
 };
 
@@ -100,12 +88,12 @@ inline uint32_t owenScramble(uint32_t x, uint32_t seed) {
 }
 
 // The four dimensions' unscrambled points at `index`: the XOR of the direction numbers of its set
-// bits, a byte at a time.
+// bits (Sobol's definition, without a branch per bit; ScrambledSobol finds its points by tables).
 inline std::array<uint32_t, 4> sobolBits(uint32_t index) {
     std::array<uint32_t, 4> x{};
-    for (int byte = 0; byte < 4; ++byte) {
-        const uint32_t* t = sobol_detail::kByteTables.t[byte][(index >> (8 * byte)) & 0xFFu];
-        for (int d = 0; d < 4; ++d) x[std::size_t(d)] ^= t[d];
+    for (int i = 0; i < 32; ++i) {
+        const uint32_t mask = 0u - ((index >> i) & 1u);
+        for (int d = 0; d < 4; ++d) x[std::size_t(d)] ^= sobol_detail::kDirections.v[d][i] & mask;
     }
     return x;
 }

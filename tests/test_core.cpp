@@ -112,21 +112,6 @@ TEST(Sobol, AnAlignedRunIsANet) {
     }
 }
 
-// A point's unscrambled bits, looked up a byte of the index at a time, are Sobol's definition: the
-// XOR of the direction numbers of the index's set bits (a table built wrong for one byte or one
-// dimension fails here even where the nets still hold).
-TEST(Sobol, ByteTablesGiveTheDirectionNumbersOfTheSetBits) {
-    Rng rng(3);
-    for (int k = 0; k < 100000; ++k) {
-        const uint32_t index = k < 256 ? uint32_t(k) << (8 * (k % 4)) : uint32_t(rng.next());
-        std::array<uint32_t, 4> want{};
-        for (int bit = 0; bit < 32; ++bit)
-            if ((index >> bit) & 1)
-                for (int d = 0; d < 4; ++d) want[size_t(d)] ^= sobol_detail::kDirections.v[d][bit];
-        ASSERT_EQ(sobolBits(index), want) << "index " << index;
-    }
-}
-
 // A scrambled point found through the reversed tables is Owen's scramble, as defined, of the
 // unscrambled point at the scrambled index.
 TEST(Sobol, ScrambledPointsAreOwensScrambleOfTheDefinition) {

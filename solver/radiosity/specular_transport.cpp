@@ -33,6 +33,7 @@ struct SpecularPaths {
         float weight = 0;      // Weight: the paths' etendue from the source, m^2
         Rgb light() const { return value.cast<double>(); }
     };
+    static_assert(sizeof(Entry) == 32);
     struct Row {
         const Entry *from, *to;
         const Entry* begin() const { return from; }
@@ -216,10 +217,9 @@ std::shared_ptr<const SpecularPaths> tracePaths(const Scene& scene, const PatchS
     }
     const double share = std::clamp(settings.aimedShare, 0.0, 1.0);
     const double receiverShare = std::clamp(settings.receiverShare, 0.0, 0.95);
-    // What one path found, as compact as it goes (24 bytes; cornell-glass's paths write 366k): summed
+    // What one path found, as compact as it goes (20 bytes; cornell-glass's paths write 366k): summed
     // in double once collated, with the squares (a Weight's etendue's, a Delivered's channels' mean's)
-    // taken then.
-    // The object the light met first is the block's.
+    // taken then. The object the light met first is the block's.
     struct Found {
         uint32_t source : 30, kind : 2;
         union {
