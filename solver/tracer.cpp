@@ -176,21 +176,23 @@ SceneTracer::SceneTracer(const Scene& scene, const PatchSet& patches, std::share
 
     emitterPdf_.assign(patches.size(), 0);
     double total = 0;
+    std::vector<double> cdf;
     for (size_t i = 0; i < patches.size(); ++i) {
         const Material& m = scene.materialOf(scene.objects[size_t(patches.object[i])]);
         if (m.type != MaterialType::Diffuse || !m.emits()) continue;
         emitterPatch_.push_back(int(i));
         total += patches.area[i] * m.emission.sum();
-        emitterCdf_.push_back(total);
+        cdf.push_back(total);
         emittedPower_ += kPi * patches.area[i] * m.emission;
     }
     for (size_t k = 0; k < emitterPatch_.size(); ++k) {
         const size_t i = size_t(emitterPatch_[k]);
-        emitterCdf_[k] /= total;
-        const double p = (emitterCdf_[k] - (k ? emitterCdf_[k - 1] : 0.0));
+        cdf[k] /= total;
+        const double p = (cdf[k] - (k ? cdf[k - 1] : 0.0));
         emitterPdf_[i] = p / patches.area[i];
     }
-    if (!emitterCdf_.empty()) emitterCdf_.back() = 1;
+    if (!cdf.empty()) cdf.back() = 1;
+    emitterCdf_ = CumulativeTable(std::move(cdf));
 }
 
 SurfaceHit SceneTracer::trace(const Vec3& origin, const Vec3& dir, double tMin) const {
@@ -258,8 +260,8 @@ LightSample SceneTracer::sampleLight(const Vec3& x, const Vec3& n, Rng& rng) con
 EmitterSample SceneTracer::sampleEmitter(Rng& rng) const {
     PENUMBRA_CHECK(!emitterCdf_.empty());
     const double u = rng.uniform();
-    const size_t k = size_t(std::lower_bound(emitterCdf_.begin(), emitterCdf_.end(), u) - emitterCdf_.begin());
-    const size_t i = size_t(emitterPatch_[std::min(k, emitterPatch_.size() - 1)]);
+    double within = 0;
+    const size_t i = size_t(emitterPatch_[emitterCdf_.pick(u, within)]);
     EmitterSample e;
     const double u1 = rng.uniform(), u2 = rng.uniform();
     e.point = samplePatchPoint(patches_, i, u1, u2, rng.uniform());

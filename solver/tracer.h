@@ -8,6 +8,7 @@
 #include <optional>
 #include <vector>
 
+#include "core/cumulative.h"
 #include "core/math.h"
 #include "core/rng.h"
 #include "mesh/patches.h"
@@ -102,7 +103,7 @@ private:
     std::vector<int> sphereObject_;
     std::vector<char> hollow_;  // per sphere: nothing else inside it (a ray from within is solved, not traced)
     std::vector<int> emitterPatch_;
-    std::vector<double> emitterCdf_;  // cumulative, normalised
+    CumulativeTable emitterCdf_;      // by power
     std::vector<double> emitterPdf_;  // per patch, per m^2
     Rgb emittedPower_ = Rgb::Zero();
     bool hasSpecular_ = false;

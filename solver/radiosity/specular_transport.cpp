@@ -566,8 +566,9 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
         } else {
             std::vector<double> cdf;
             for (size_t i : g.patches) cdf.push_back((cdf.empty() ? 0 : cdf.back()) + patches.area[i]);
-            g.area = 2 * cdf.back();
-            for (double& c : cdf) c /= g.area / 2;
+            const double total = cdf.back();
+            g.area = 2 * total;
+            for (double& c : cdf) c /= total;
             g.cdf = CumulativeTable(std::move(cdf));
         }
     }
@@ -851,7 +852,6 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
     out.lossObject.resize(out.lossStart[n]);
     out.lossShare.resize(out.lossStart[n]);
     out.outSquare.resize(out.outStart[n]);
-    std::vector<double>& outSquare = out.outSquare;
     parallelFor(
         int64_t(n),
         [&](int64_t begin, int64_t end) {
@@ -877,7 +877,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                     const double ratio = patches.area[i] / patches.area[size_t(t.target)];
                     out.outTarget[k] = t.target;
                     out.outWeight[k] = ratio * t.share;
-                    outSquare[k++] = ratio * ratio * t.square;
+                    out.outSquare[k++] = ratio * ratio * t.square;
                 }
                 k = out.lossStart[i];
                 for (const Transfer& t : rows[i].lost) {
@@ -898,7 +898,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
             const size_t j = size_t(out.outTarget[k]);
             out.inSource[fill[j]] = int(i);
             out.inWeight[fill[j]] = out.outWeight[k];
-            out.inSquare[fill[j]] = outSquare[k];
+            out.inSquare[fill[j]] = out.outSquare[k];
             ++fill[j];
         }
     out.seconds = timer.seconds();
