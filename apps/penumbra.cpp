@@ -69,8 +69,9 @@ struct SolveCli {
 
 struct RenderCli {
     std::string scene, out, solution, integrator = "final-gather", camera, resolution;
-    int spp = 0;    // 0: the integrator's default
-    int orbit = 0;  // > 0: that many turntable views
+    std::string indirect = "solution";  // the final gather's indirect light: read from the solve, or gathered
+    int spp = 0;                        // 0: the integrator's default
+    int orbit = 0;                      // > 0: that many turntable views
     double exposure = 0;
     GatherSettings gather;
     PhotonSettings photons;
@@ -202,6 +203,7 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     const std::string ext = out.extension().string();
     if (ext != ".exr" && ext != ".hdr") throw Error(cat("--out ", c.out, ": expected an .exr or .hdr file name"));
     const int spp = c.spp > 0 ? c.spp : entry.defaultSpp;
+    c.gather.solvedIndirect = c.indirect == "solution";
 
     // The geometry: the solve's patches, or (path tracer) the scene meshed as a solve would mesh it.
     SolveResult stored;
@@ -229,7 +231,7 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     const CounterValues before = counterValues();
     const std::vector<Image> images =
         entry.render(RenderInputs{scene, stored.patches, stored.corners, stored.rays, c.gather, c.photons, common.seed,
-                                  &stored.solution.display},
+                                  &stored.solution.display, &stored.indirect},
                      cameras, spp);
     const double seconds = timer.seconds();
     std::string counted;
@@ -272,7 +274,7 @@ int runView(RenderCli& c, SolveCli& s, ViewerOptions& options, const CommonOptio
         const std::string parent = std::filesystem::path(options.screenshot).parent_path().string();
         if (!parent.empty()) ensureDirectory(parent);
     }
-    runViewer(scene, stored.patches, stored.corners, stored.solution.display, camera, options);
+    runViewer(scene, stored.patches, stored.corners, stored.solution.display, stored.indirect, camera, options);
     return 0;
 }
 
@@ -437,6 +439,14 @@ int main(int argc, char** argv) {
         ->add_option("--direct-samples", render.gather.directSamples, "Final gather: emitter samples per camera sample")
         ->capture_default_str()
         ->check(CLI::Range(1, 4096));
+    renderCmd
+        ->add_option("--indirect", render.indirect,
+                     "Final gather: solution: the solve's indirect light read where the camera looks, with the small "
+                     "sources' direct light in closed form times shadow rays at each point (no gather rays; the "
+                     "fast path); gather: gathered with rays at every point (as it is anyway where the solve "
+                     "holds none: the hierarchy, or lamps that are not small)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"solution", "gather"}));
     renderCmd->add_option("--gather-rays", render.gather.gatherRays, "Final gather: gather rays per camera sample")
         ->capture_default_str()
         ->check(CLI::Range(1, 65536));

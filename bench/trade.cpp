@@ -464,7 +464,7 @@ Row Bench::runOne(const Setting& s) {
             Timer setup;
             const auto views = quietly([&] {
                 return std::make_unique<SolvedScene>(scene_, solved.patches, solved.corners, gather, photons,
-                                                     options_.seed, solved.rays);
+                                                     options_.seed, solved.rays, nullptr, solved.indirect);
             });
             row.photons = setup.seconds();
             const uint64_t rays1 = raysCast();

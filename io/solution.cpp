@@ -10,8 +10,11 @@ namespace penumbra {
 namespace {
 
 // Version 02 adds the corner values; version 01 files (without them) are still read, their corners
-// interpolated from the display values as they were shown when written.
-constexpr char kMagic[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '2'};
+// interpolated from the display values as they were shown when written. Version 03 adds the indirect
+// irradiance per corner (SolveResult::indirect) after the patches, a flag and then the values; files
+// of 01 and 02 are read without it (their final gather gathers).
+constexpr char kMagic[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '3'};
+constexpr char kMagic02[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '2'};
 constexpr char kMagic01[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '1'};
 
 struct Writer {
@@ -65,6 +68,11 @@ void writeSolution(const std::string& path, const SolveResult& s) {
         w.put(s.solution.display[i]);
         for (int k = 0; k < 4; ++k) w.put(s.corners[i][size_t(k)]);
     }
+    const bool indirect = s.indirect.size() == s.patches.size();
+    w.put(uint8_t(indirect));
+    if (indirect)
+        for (const auto& corners : s.indirect)
+            for (const Rgb& c : corners) w.put(c);
     writeFileAtomic(path, w.bytes);
 }
 
@@ -73,7 +81,8 @@ SolveResult readSolution(const std::string& path) {
     if (!in) throw Error(cat(path, ": no solution here (solve the scene first with `penumbra solve SCENE --out DIR`)"));
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     const bool v01 = bytes.size() >= 8 && std::memcmp(bytes.data(), kMagic01, 8) == 0;
-    if (bytes.size() < 8 || (!v01 && std::memcmp(bytes.data(), kMagic, 8) != 0))
+    const bool v02 = bytes.size() >= 8 && std::memcmp(bytes.data(), kMagic02, 8) == 0;
+    if (bytes.size() < 8 || (!v01 && !v02 && std::memcmp(bytes.data(), kMagic, 8) != 0))
         throw Error(cat(path, ": not a Penumbra solution file (or from an incompatible version)"));
     Reader r{bytes, path, 8};
     SolveResult s;
@@ -103,6 +112,13 @@ SolveResult readSolution(const std::string& path) {
     }
     if (s.patches.size() != n) throw Error(cat(path, ": solution file is damaged (degenerate patch)"));
     if (v01) s.corners = interpolateCorners(s.patches, s.solution.display);
+    if (!v01 && !v02 && r.get<uint8_t>() != 0) {
+        s.indirect.resize(n);
+        for (auto& corners : s.indirect)
+            for (Rgb& c : corners) c = r.rgb();
+    }
+    if (r.at != bytes.size())
+        throw Error(cat(path, ": solution file is damaged (", bytes.size() - r.at, " bytes too many)"));
     return s;
 }
 

@@ -13,8 +13,15 @@ const Counter g_gatherRays("render.gather_rays", "final gather: cosine rays that
 }  // namespace
 
 FinalGather::FinalGather(const SceneTracer& tracer, const std::vector<std::array<Rgb, 4>>& cornerRadiosity,
-                         const PhotonMap* caustics, const GatherSettings& settings)
-    : tracer_(tracer), corners_(cornerRadiosity), caustics_(caustics), settings_(settings) {}
+                         const PhotonMap* caustics, const GatherSettings& settings, const CornerValues* indirect)
+    : tracer_(tracer),
+      corners_(cornerRadiosity),
+      caustics_(caustics),
+      settings_(settings),
+      direct_(tracer.scene(), tracer.patches()) {
+    if (settings.solvedIndirect && indirect && indirect->size() == tracer.patches().size() && !direct_.empty())
+        indirect_ = indirect;
+}
 
 Rgb FinalGather::radiosityAt(const SurfaceHit& y) const {
     return interpolateAt(tracer_.patches(), size_t(y.patch), y.u, y.v, corners_[size_t(y.patch)]);
@@ -41,6 +48,15 @@ Rgb FinalGather::trace(const Vec3& origin, const Vec3& dir, Rng& rng, int depth)
 Rgb FinalGather::reflected(const SurfaceHit& x, Rng& rng, int level) const {
     const Rgb& rho = x.material->reflectance;
     if ((rho <= 0).all()) return Rgb::Zero();
+    if (level == 0 && indirect_ && x.patch >= 0) {
+        // The solve's indirect light where the camera looks, the direct light of the small sources
+        // at the point itself, and the caustics: no gather rays.
+        const Vec3 from = x.point + tracer_.epsilon() * x.normal;
+        Rgb E = direct_.irradiance(tracer_, from, x.normal, settings_.directSamples, rng);
+        if (caustics_) E += caustics_->irradiance(x.point, x.normal);
+        E += interpolateAt(tracer_.patches(), size_t(x.patch), x.u, x.v, (*indirect_)[size_t(x.patch)]).max(0.0);
+        return rho * kInvPi * E;
+    }
     const int lightSamples = level == 0 ? settings_.directSamples : 1;
     const int gatherRays = level == 0 ? settings_.gatherRays : 1;
     Rgb E = directIrradiance(x, rng, lightSamples, gatherRays);
@@ -118,8 +134,9 @@ CornerValues meanPreservingCorners(const PatchSet& patches, CornerValues corners
 
 SolvedScene::SolvedScene(const Scene& scene, const PatchSet& patches, CornerValues cornerRadiosity,
                          const GatherSettings& settings, PhotonSettings photons, uint64_t seed,
-                         std::shared_ptr<const RayScene> rays, const std::vector<Rgb>* means)
+                         std::shared_ptr<const RayScene> rays, const std::vector<Rgb>* means, CornerValues indirect)
     : corners_(means ? meanPreservingCorners(patches, std::move(cornerRadiosity), *means) : std::move(cornerRadiosity)),
+      indirect_(std::move(indirect)),
       tracer_(std::make_unique<SceneTracer>(scene, patches, std::move(rays))) {
     if (tracer_->hasSpecular()) {
         photons.seed = seed;
@@ -127,7 +144,7 @@ SolvedScene::SolvedScene(const Scene& scene, const PatchSet& patches, CornerValu
     } else {
         logInfo("no mirrors or glass in the scene: no photon pass, no specular paths");
     }
-    gather_ = std::make_unique<FinalGather>(*tracer_, corners_, caustics_.get(), settings);
+    gather_ = std::make_unique<FinalGather>(*tracer_, corners_, caustics_.get(), settings, &indirect_);
 }
 
 Image renderSolvedScene(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity,

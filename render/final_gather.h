@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/rng.h"
+#include "render/direct_light.h"
 #include "render/film.h"
 #include "render/photon_map.h"
 #include "solver/tracer.h"
@@ -27,14 +28,19 @@ struct GatherSettings {
     int maxSpecularDepth = 16;    // mirror and glass bounces before a path stops
     double minThroughput = 1e-3;  // specular branches carrying less are dropped
     double closeFactor = 8;       // gather hits nearer than this many patch radii are shaded deeper
+    // Read the solve's indirect irradiance (indirectCorners) at the points the camera sees, with the
+    // small sources' direct light at each (DirectLight, `directSamples` shadow rays), instead of
+    // gathering it with rays; where the solve has none (the hierarchy, no small sources), gather.
+    bool solvedIndirect = true;
 };
 
 class FinalGather {
 public:
     // `cornerRadiosity`: the solved radiosity B per patch corner (see interpolateCorners);
     // `caustics` may be null when the scene has no mirrors or glass.
+    // `indirect`: the solve's indirect irradiance per patch corner (indirectCorners), or null.
     FinalGather(const SceneTracer& tracer, const std::vector<std::array<Rgb, 4>>& cornerRadiosity,
-                const PhotonMap* caustics, const GatherSettings& settings);
+                const PhotonMap* caustics, const GatherSettings& settings, const CornerValues* indirect = nullptr);
 
     // Radiance arriving along a camera ray.
     Rgb radiance(const Vec3& origin, const Vec3& dir, Rng& rng) const { return trace(origin, dir, rng, 0); }
@@ -56,6 +62,8 @@ private:
     const std::vector<std::array<Rgb, 4>>& corners_;
     const PhotonMap* caustics_;
     GatherSettings settings_;
+    const CornerValues* indirect_ = nullptr;  // null: gather the indirect light
+    DirectLight direct_;
 };
 
 Image renderFinalGather(const FinalGather& gather, const Camera& camera, int samplesPerPixel, uint64_t seed);
@@ -77,7 +85,8 @@ public:
     // radiosity per patch), the gather reads meanPreservingCorners.
     SolvedScene(const Scene& scene, const PatchSet& patches, CornerValues cornerRadiosity,
                 const GatherSettings& settings, PhotonSettings photons, uint64_t seed,
-                std::shared_ptr<const RayScene> rays = nullptr, const std::vector<Rgb>* means = nullptr);
+                std::shared_ptr<const RayScene> rays = nullptr, const std::vector<Rgb>* means = nullptr,
+                CornerValues indirect = {});
     // With corner values interpolated from B per patch (interpolateCorners).
     SolvedScene(const Scene& scene, const PatchSet& patches, const std::vector<Rgb>& radiosity,
                 const GatherSettings& settings, PhotonSettings photons, uint64_t seed)
@@ -89,7 +98,7 @@ public:
     const FinalGather& gather() const { return *gather_; }
 
 private:
-    CornerValues corners_;
+    CornerValues corners_, indirect_;
     std::unique_ptr<SceneTracer> tracer_;
     std::unique_ptr<PhotonMap> caustics_;
     std::unique_ptr<FinalGather> gather_;

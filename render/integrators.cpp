@@ -14,7 +14,8 @@ std::shared_ptr<const RayScene> raysOf(const RenderInputs& in) {
 
 std::vector<Image> renderFinalGatherViews(const RenderInputs& in, const std::vector<Camera>& cameras, int spp) {
     // The ray scene and the photon map serve every view of an orbit.
-    const SolvedScene solved(in.scene, in.patches, in.corners, in.gather, in.photons, in.seed, raysOf(in), in.means);
+    const SolvedScene solved(in.scene, in.patches, in.corners, in.gather, in.photons, in.seed, raysOf(in), in.means,
+                             in.indirect ? *in.indirect : CornerValues{});
     std::vector<Image> images;
     for (const Camera& camera : cameras) images.push_back(solved.render(camera, spp, in.seed));
     return images;

@@ -30,6 +30,9 @@ struct RenderInputs {
     // The displayed radiosity per patch: the final gather reads corners whose mean over each patch
     // is this (meanPreservingCorners); without it, the corners as they are.
     const std::vector<Rgb>* means = nullptr;
+    // The solve's indirect irradiance per patch corner (SolveResult::indirect), or null: the final
+    // gather then gathers it with rays.
+    const CornerValues* indirect = nullptr;
 };
 
 struct IntegratorEntry {

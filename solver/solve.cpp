@@ -102,6 +102,7 @@ void solveBuiltMatrix(const SolveOptions& options, const StepObserver& observer,
         r.corners = directCorners(r.patches, r.system, r.F, r.solution.display, *r.rays);
     else
         r.corners = interpolateCorners(r.patches, r.solution.display);
+    r.indirect = indirectCorners(r.patches, r.system, r.F, r.solution.display);
     r.secondsVertices += vertexTimer.seconds();
 }
 

@@ -65,6 +65,10 @@ struct SolveResult {
     RadiositySystem system;
     RadiositySolution solution;
     CornerValues corners;  // the displayed radiosity at each patch corner
+    // The irradiance at each patch corner from all but the small sources' emission (indirectCorners,
+    // vertex_radiosity.h), W/m^2: what the final gather reads at the points it shades. Empty without
+    // small sources or a matrix (the hierarchy).
+    CornerValues indirect;
     PowerBalance power;
     double secondsMeshing = 0, secondsFormFactors = 0, secondsSpecular = 0, secondsSolve = 0, secondsVertices = 0;
     double rowSumMin = 0, rowSumMax = 0;  // front-face row sums as made (closed scenes: 1 within error)

@@ -187,15 +187,16 @@ struct Keys {
 // until cancelled; the main thread shows the running mean.
 class Progressive {
 public:
-    Progressive(const Scene& scene, const PatchSet& patches, const CornerValues& corners, const std::vector<Rgb>& means)
-        : scene_(scene), patches_(patches), corners_(corners), means_(means) {}
+    Progressive(const Scene& scene, const PatchSet& patches, const CornerValues& corners, const std::vector<Rgb>& means,
+                const CornerValues& indirect)
+        : scene_(scene), patches_(patches), corners_(corners), means_(means), indirect_(indirect) {}
     ~Progressive() { stop(); }
 
     void start(const Camera& camera) {
         stop();
         if (!solved_)
             solved_ = std::make_unique<SolvedScene>(scene_, patches_, corners_, GatherSettings{}, PhotonSettings{}, 1,
-                                                    nullptr, means_.empty() ? nullptr : &means_);
+                                                    nullptr, means_.empty() ? nullptr : &means_, indirect_);
         camera_ = camera;
         cancel_ = false;
         passes_ = 0;
@@ -231,6 +232,7 @@ private:
     const PatchSet& patches_;
     const CornerValues& corners_;
     const std::vector<Rgb>& means_;
+    const CornerValues& indirect_;
     std::unique_ptr<SolvedScene> solved_;  // built on the first G
     Camera camera_;
     std::thread worker_;
@@ -266,7 +268,7 @@ void requireDisplay() {
 }
 
 void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& corners, const std::vector<Rgb>& means,
-               const Camera& start, const ViewerOptions& options) {
+               const CornerValues& indirect, const Camera& start, const ViewerOptions& options) {
     requireDisplay();
     if (!glfwInit()) throw Error("view: GLFW could not start (no usable display)");
     struct Terminate {
@@ -358,7 +360,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
     ImGui_ImplOpenGL3_Init("#version 330");
 
     Navigation nav;
-    Progressive progressive(scene, patches, corners, means);
+    Progressive progressive(scene, patches, corners, means, indirect);
     Camera progressiveView;
     GLuint gatherTexture = 0;
     glGenTextures(1, &gatherTexture);

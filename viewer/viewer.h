@@ -26,8 +26,9 @@ struct ViewerOptions {
 void requireDisplay();
 
 // `corners`: the displayed radiosity at each patch corner, `means` per patch (the final gather's
-// reading, meanPreservingCorners). Throws Error when no window can be opened (no display).
+// reading, meanPreservingCorners), `indirect` the solve's indirect irradiance per corner (the final
+// gather's fast path; may be empty). Throws Error when no window can be opened (no display).
 void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& corners, const std::vector<Rgb>& means,
-               const Camera& start, const ViewerOptions& options);
+               const CornerValues& indirect, const Camera& start, const ViewerOptions& options);
 
 }  // namespace penumbra

@@ -244,4 +244,14 @@ CornerValues directCorners(const PatchSet& p, const RadiositySystem& s, const Fo
     return meanAtVertices(p, around, own, creaseDeg);
 }
 
+CornerValues indirectCorners(const PatchSet& p, const RadiositySystem& s, const FormFactorMatrix& F,
+                             const std::vector<Rgb>& B, double creaseDeg) {
+    const std::vector<char> small = smallSources(s);
+    if (small.empty() || F.size() != p.size() || B.size() != p.size()) return {};
+    std::vector<Rgb> rest = B;
+    for (size_t j = 0; j < small.size(); ++j)
+        if (small[j]) rest[j] = (rest[j] - s.emission[j]).max(0.0);
+    return interpolateCorners(p, gatherIrradiance(s, F, rest, true), creaseDeg);
+}
+
 }  // namespace penumbra

@@ -73,4 +73,14 @@ CornerValues gatherCorners(const PatchSet& patches, const RadiositySystem& syste
 CornerValues directCorners(const PatchSet& patches, const RadiositySystem& system, const FormFactorMatrix& F,
                            const std::vector<Rgb>& B, const RayScene& rays, double creaseDeg = 30);
 
+// The irradiance at each patch corner from everything but the small sources' own emission (their
+// reflected light included, and light through mirrors and glass from any diffuse patch): per patch,
+// sum_j F(i, j) (B_j - E_j of small sources) plus the transport's share of the same, as the solve found it,
+// averaged at the vertices as interpolateCorners does. A view adds the small sources' direct light
+// at each point it shades (render/direct_light.h) and the caustics (light from the sources through
+// mirrors and glass) from the photon map: each light path counted once. Empty when the scene has
+// no small sources or `F` is not the patches' matrix (the hierarchy).
+CornerValues indirectCorners(const PatchSet& patches, const RadiositySystem& system, const FormFactorMatrix& F,
+                             const std::vector<Rgb>& B, double creaseDeg = 30);
+
 }  // namespace penumbra

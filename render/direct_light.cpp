@@ -1,0 +1,107 @@
+#include "render/direct_light.h"
+
+#include <cmath>
+
+#include "solver/radiosity/form_factor_kernel.h"
+#include "solver/radiosity/system.h"
+
+namespace penumbra {
+
+DirectLight::DirectLight(const Scene& scene, const PatchSet& patches) {
+    const std::vector<char> small = smallSources(buildSystem(scene, patches));
+    std::vector<char> whole(scene.objects.size(), 0);  // objects taken as one polygon
+    for (size_t i = 0; i < small.size(); ++i) {
+        if (!small[i]) continue;
+        const int o = patches.object[i];
+        const SceneObject& object = scene.objects[size_t(o)];
+        const bool polygon = object.type == ShapeType::Quad || object.type == ShapeType::Triangle;
+        if (polygon && whole[size_t(o)]) continue;
+        Source s;
+        if (polygon) {
+            whole[size_t(o)] = 1;
+            s.count = int(object.vertices.size());
+            for (int k = 0; k < s.count; ++k) s.corner[size_t(k)] = object.vertices[size_t(k)];
+        } else {
+            s.count = patches.cornerCount[i];
+            s.corner = patches.corners[i];
+        }
+        s.normal = patches.normal[i];  // the front the patches emit from
+        s.centre = Vec3::Zero();
+        for (int k = 0; k < s.count; ++k) s.centre += s.corner[size_t(k)] / double(s.count);
+        s.exitance = kPi * scene.materialOf(object).emission;
+        if (s.count == 4) {
+            const double a = (s.corner[1] - s.corner[0]).cross(s.corner[2] - s.corner[0]).norm();
+            const double b = (s.corner[2] - s.corner[0]).cross(s.corner[3] - s.corner[0]).norm();
+            s.split = a + b > 0 ? a / (a + b) : 1;
+        }
+        sources_.push_back(s);
+    }
+}
+
+Vec3 DirectLight::pointOn(const Source& s, double u1, double u2) const {
+    int b = 1;
+    if (u1 < s.split) {
+        u1 /= s.split;
+    } else {
+        u1 = (u1 - s.split) / (1 - s.split);
+        b = 2;
+    }
+    const double r = std::sqrt(u1);
+    const Vec3& a = s.corner[0];
+    return a + r * (1 - u2) * (s.corner[size_t(b)] - a) + r * u2 * (s.corner[size_t(b + 1)] - a);
+}
+
+Rgb DirectLight::irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3& n, int rays, Rng& rng) const {
+    thread_local std::vector<Rgb> full;
+    thread_local std::vector<double> cumulative;
+    const size_t count = sources_.size();
+    full.resize(count);
+    cumulative.resize(count);
+    double total = 0;
+    for (size_t k = 0; k < count; ++k) {
+        const Source& s = sources_[k];
+        // Only a source's front lights x (a ceiling above a lamp hung below it sees its back).
+        const bool front = s.normal.dot(x - s.centre) > 0;
+        const double f = front ? pointPolygonFormFactor(x, n, s.corner.data(), s.count) : 0;
+        full[k] = f > 0 ? Rgb(f * s.exitance) : Rgb::Zero();
+        total += full[k].sum();
+        cumulative[k] = total;
+    }
+    if (!(total > 0)) return Rgb::Zero();
+    // The rays stratified over the sources laid end to end by their unoccluded light, and within each
+    // over its area: one source and a square count of rays make a jittered grid on it. A source's
+    // visible share is that of its rays' points in front of x (the closed form leaves out the part of
+    // a source behind x's plane, and rays to it would find x's own surface in the way); a source no
+    // such ray reached takes the share of all the rays.
+    thread_local std::vector<std::array<int, 2>> seen;  // per source: rays in front of x, and of those arrived
+    seen.assign(count, {0, 0});
+    const int side = stratumSide(rays);
+    const bool grid = count == 1 && side * side == rays;
+    size_t k = 0;
+    for (int r = 0; r < rays; ++r) {
+        double u1, u2;
+        if (grid) {
+            u1 = ((r % side) + rng.uniform()) / side;
+            u2 = ((r / side) + rng.uniform()) / side;
+        } else {
+            const double u = (r + rng.uniform()) / rays * total;
+            while (k + 1 < count && cumulative[k] <= u) ++k;
+            const double low = k > 0 ? cumulative[k - 1] : 0;
+            u1 = std::clamp((u - low) / (cumulative[k] - low), 0.0, 1.0 - 1e-12);
+            u2 = rng.uniform();
+        }
+        const Source& s = sources_[k];
+        const Vec3 y = pointOn(s, u1, u2);
+        if (n.dot(y - x) <= 0) continue;
+        ++seen[k][0];
+        seen[k][1] += tracer.visible(x, y + tracer.epsilon() * s.normal);
+    }
+    int front = 0, arrived = 0;
+    for (const auto& c : seen) front += c[0], arrived += c[1];
+    const double share = front > 0 ? double(arrived) / front : 1;
+    Rgb E = Rgb::Zero();
+    for (size_t j = 0; j < count; ++j) E += full[j] * (seen[j][0] > 0 ? double(seen[j][1]) / seen[j][0] : share);
+    return E;
+}
+
+}  // namespace penumbra

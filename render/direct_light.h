@@ -1,0 +1,44 @@
+// The small sources' direct light at a point, as a view needs it at every pixel: each source
+// polygon's unoccluded irradiance in closed form (Lambert's contour formula), times the share of a
+// few stratified shadow rays to it that arrive. A point that sees all of every source, or none of
+// it, gets the exact value without noise; only a penumbra is sampled, and unbiasedly so (jittered
+// points, not grid centres). The solve splits its irradiance the same way (indirectCorners,
+// vertex_radiosity.h), so the two parts add up to all the light once.
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include "core/math.h"
+#include "core/rng.h"
+#include "mesh/patches.h"
+#include "mesh/scene.h"
+#include "solver/tracer.h"
+
+namespace penumbra {
+
+class DirectLight {
+public:
+    // The scene's small sources (smallSources, system.h): a quad or triangle object as its one
+    // polygon, any other emitting object patch by patch. None when the emitters are not small.
+    DirectLight(const Scene& scene, const PatchSet& patches);
+
+    bool empty() const { return sources_.empty(); }
+    size_t sources() const { return sources_.size(); }
+    // Irradiance at x (unit normal n, x already off its surface) from the sources, W/m^2, with
+    // `rays` shadow rays spread over the sources in proportion to their unoccluded light.
+    Rgb irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3& n, int rays, Rng& rng) const;
+
+private:
+    struct Source {
+        std::array<Vec3, 4> corner;
+        int count = 4;
+        Vec3 normal, centre;
+        Rgb exitance;      // E = pi L_e, W/m^2
+        double split = 1;  // share of the area in the triangle (0, 1, 2); the rest in (0, 2, 3)
+    };
+    Vec3 pointOn(const Source& s, double u1, double u2) const;
+    std::vector<Source> sources_;
+};
+
+}  // namespace penumbra
