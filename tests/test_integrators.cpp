@@ -9,6 +9,7 @@
 #include "core/optics.h"
 #include "core/parallel.h"
 #include "fixtures.h"
+#include "render/direct_light.h"
 #include "render/final_gather.h"
 #include "render/image_metrics.h"
 #include "render/path_tracer.h"
@@ -64,7 +65,9 @@ Image pathImage(const std::string& json, int spp, uint64_t seed = 1) {
 Image gatherImage(const std::string& json, int patches, int spp, uint64_t seed = 1, const Camera* camera = nullptr) {
     const Scene scene = test::sceneFromJson(json);
     const SolveResult r = test::solve(json, patches);
-    return renderSolvedScene(scene, r.patches, r.solution.display, camera ? *camera : scene.camera, spp, seed, {}, {});
+    // As `render` does by default: the solve's indirect light read where the scene has small sources.
+    const SolvedScene solved(scene, r.patches, r.corners, {}, {}, seed, r.rays, &r.solution.display, r.indirect);
+    return solved.render(camera ? *camera : scene.camera, spp, seed);
 }
 
 }  // namespace
@@ -135,6 +138,46 @@ TEST(Photons, OneLampsPhotonsCarryExactlyItsPower) {
     Rgb expected;
     const PhotonStats stats = tracePhotons(json, 10000, expected);
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(stats.emittedPower[c], kPi * (3 - c), 1e-9) << c;
+}
+
+// The small sources' direct light as the final gather takes it (closed form times stratified shadow
+// rays) against emitter sampling (the path tracer's next-event estimate, 200,000 samples a point):
+// a lamp over a floor, and a wall beside it whose plane cuts the lamp. Points in its penumbra on
+// both sides, one on the wall itself (which sees only the lamp's part in front of it: the closed
+// form leaves the rest out, so rays to it must not count as blocked), and one in full view.
+TEST(DirectLight, AgreesWithEmitterSamplingInPenumbraeAndWhereAPlaneCutsTheLamp) {
+    const Scene scene = test::sceneFromJson(R"({"materials": {"white": {"type": "diffuse", "reflectance": 0.5},
+                   "lamp": {"type": "diffuse", "reflectance": 0, "emission": 10}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "white", "vertices": [[2,0,-2],[-2,0,-2],[-2,0,2],[2,0,2]]},
+        {"name": "wall", "type": "quad", "material": "white",
+         "vertices": [[0.1,0,-2],[0.1,0.9,-2],[0.1,0.9,2],[0.1,0,2]]},
+        {"name": "lamp", "type": "quad", "material": "lamp",
+         "vertices": [[0.25,1,-0.25],[0.25,1,0.25],[-0.25,1,0.25],[-0.25,1,-0.25]]}]})");
+    const PatchSet patches = meshScene(scene, {});
+    const SceneTracer tracer(scene, patches);
+    const DirectLight direct(scene, patches);
+    ASSERT_EQ(direct.sources(), 1u) << "the lamp, as one polygon";
+    const Vec3 up(0, 1, 0), side(1, 0, 0);
+    const std::vector<std::pair<Vec3, Vec3>> points{
+        {{0.5, 0, 0.3}, up}, {{-0.5, 0, -0.2}, up}, {{0, 0, 0}, up}, {{0.1, 0.5, 0.5}, side}, {{1.5, 0, 1.5}, up}};
+    for (const auto& [x, n] : points) {
+        Rng rng(7);
+        const int samples = 200000;
+        double sum = 0, sum2 = 0;
+        for (int k = 0; k < samples; ++k) {
+            const LightSample l = tracer.sampleLight(x, n, rng);
+            const double e = l.found() ? l.radiance[0] * l.cosine / l.pdf : 0;
+            sum += e, sum2 += e * e;
+        }
+        const double mean = sum / samples, sigma = std::sqrt(std::max(0.0, sum2 / samples - mean * mean) / samples);
+        double ours = 0;
+        for (int k = 0; k < 16; ++k) ours += direct.irradiance(tracer, x + tracer.epsilon() * n, n, 1024, rng)[0] / 16;
+        std::printf("at (%g, %g, %g): closed form x shadow rays %.5f, emitter sampling %.5f +- %.5f W/m^2\n", x.x(),
+                    x.y(), x.z(), ours, mean, sigma);
+        EXPECT_GT(mean, 0.01);
+        EXPECT_NEAR(ours, mean, 4 * sigma + 0.005 * mean) << "at " << x.transpose();
+    }
 }
 
 TEST(FinalGather, DarkRoomBehindASharedWallStaysBlack) {

@@ -37,7 +37,8 @@ struct Pair {
 };
 
 // Solves the scene with the defaults, renders it three ways at `size` x `size`: the final gather
-// (default settings but `gatherSpp`), the radiosity view (its default 4 spp) and the path tracer.
+// (default settings, reading the solve's indirect light, but `gatherSpp`), the radiosity view (its default 4 spp) and
+// the path tracer.
 std::unique_ptr<Pair> renderAll(const std::string& file, int size, int gatherSpp, int pathSpp) {
     auto p = std::make_unique<Pair>();
     const std::string json = test::sceneFile(file);
@@ -46,8 +47,10 @@ std::unique_ptr<Pair> renderAll(const std::string& file, int size, int gatherSpp
     p->camera.width = p->camera.height = size;
     SolveOptions options;
     p->solved = solveScene(p->scene, options);
+    // As `render` does by default: the solve's indirect light read where the camera looks.
+    if (p->solved.indirect.empty()) ADD_FAILURE() << file << ": the solve holds no indirect light to read";
     const SolvedScene solved(p->scene, p->solved.patches, p->solved.corners, {}, {}, 1, p->solved.rays,
-                             &p->solved.solution.display);
+                             &p->solved.solution.display, p->solved.indirect);
     p->gather = solved.render(p->camera, gatherSpp, 1);
     p->radiosity =
         renderRadiosityView(p->scene, p->camera, p->solved.patches, *p->solved.rays, p->solved.corners, {4, 1});
