@@ -25,6 +25,7 @@ enum class Stream : uint64_t {
     BackVisibility = 2,          // the rays to the back part of a straddling pair
     VisibilityAgain = 4,         // a pair's visibility measured again with more rays (castMoreRays)
     Pixels = 3,                  // a pixel's camera samples (pairRng: row, column)
+    EdgePixels = 0xED6E,         // an edge pixel's samples on a finer grid (pairRng: row, column)
     SpecularTransport = 0x5bec,  // the solve's rays through mirrors and glass, per patch
     Photons = 0x9407,            // caustic photons, per photon
     EscapeRays = 0xe5ca9e,       // rays counting the escaped power, per patch

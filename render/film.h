@@ -16,7 +16,10 @@ namespace penumbra {
 using RadianceFn = std::function<Rgb(const Vec3& origin, const Vec3& dir, Rng& rng)>;
 
 // Renders with about `samplesPerPixel` samples (rounded up to a square number for stratification).
+// `edges`: a pixel whose samples differ by more than their mean (a lamp's edge: the lamp is fifty
+// times brighter than the ceiling around it), and its eight neighbours, are sampled again on a grid
+// twice as fine (at least 12 x 12 beside a lamp's edge), and take the mean of all their samples.
 Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
-                   const RadianceFn& radiance);
+                   const RadianceFn& radiance, bool edges = false);
 
 }  // namespace penumbra

@@ -117,8 +117,9 @@ Rgb FinalGather::indirectIrradiance(const SurfaceHit& x, Rng& rng, int rays, int
 }
 
 Image renderFinalGather(const FinalGather& gather, const Camera& camera, int samplesPerPixel, uint64_t seed) {
-    return renderPixels(camera, samplesPerPixel, seed, "final gather",
-                        [&](const Vec3& o, const Vec3& d, Rng& rng) { return gather.radiance(o, d, rng); });
+    return renderPixels(
+        camera, samplesPerPixel, seed, "final gather",
+        [&](const Vec3& o, const Vec3& d, Rng& rng) { return gather.radiance(o, d, rng); }, true);
 }
 
 CornerValues meanPreservingCorners(const PatchSet& patches, CornerValues corners, const std::vector<Rgb>& means) {
