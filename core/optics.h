@@ -58,9 +58,11 @@ struct CosineSampler {
     }
     Vec3 n, t, b;
 };
-inline Vec3 cosineDirection(const Vec3& n, Rng& rng) {
-    const double u1 = rng.uniform();
-    return cosineDirection(n, u1, rng.uniform());
+// From an Rng or a PixelSampler.
+template <typename Generator>
+Vec3 cosineDirection(const Vec3& n, Generator& g) {
+    const double u1 = g.uniform();
+    return cosineDirection(n, u1, g.uniform());
 }
 
 }  // namespace penumbra

@@ -104,6 +104,7 @@ inline std::array<uint32_t, 4> sobolBits(uint32_t index) {
 // tables without reversing back and forth.
 class ScrambledSobol {
 public:
+    ScrambledSobol() = default;
     explicit ScrambledSobol(uint64_t seed) {
         const uint32_t s0 = uint32_t(seed), s1 = uint32_t(seed >> 32);
         indexSeed_ = s0 * 0x9E3779B9u + 0x7F4A7C15u;

@@ -52,6 +52,16 @@ Vec3 DirectLight::pointOn(const Source& s, double u1, double u2) const {
 }
 
 Rgb DirectLight::irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3& n, int rays, Rng& rng) const {
+    if (sources_.size() > kMostPolygons) {
+        // Too many polygons to sum in closed form at every point (a lamp meshed finely): emitter
+        // sampling, unbiased, noisy in full light too.
+        Rgb sum = Rgb::Zero();
+        for (int r = 0; r < rays; ++r) {
+            const LightSample l = tracer.sampleLight(x, n, rng);
+            if (l.found()) sum += l.radiance * (l.cosine / l.pdf);
+        }
+        return sum / rays;
+    }
     thread_local std::vector<Rgb> full;
     thread_local std::vector<double> cumulative;
     const size_t count = sources_.size();

@@ -26,7 +26,10 @@ public:
     bool empty() const { return sources_.empty(); }
     size_t sources() const { return sources_.size(); }
     // Irradiance at x (unit normal n, x already off its surface) from the sources, W/m^2, with
-    // `rays` shadow rays spread over the sources in proportion to their unoccluded light.
+    // `rays` shadow rays spread over the sources in proportion to their unoccluded light. Past
+    // kMostPolygons sources, by emitter sampling instead (tracer.sampleLight: every emitter, which
+    // are then all small sources).
+    static constexpr size_t kMostPolygons = 64;
     Rgb irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3& n, int rays, Rng& rng) const;
 
 private:

@@ -95,4 +95,33 @@ Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, con
     return image;
 }
 
+Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
+                          const SampledRadianceFn& radiance) {
+    const PinholeCamera cam(camera);
+    Image image(camera.width, camera.height);
+    const int spp = std::max(1, samplesPerPixel);
+    const uint64_t pixels = mixSeed(seed, uint64_t(Stream::Pixels));
+    Progress progress(title, camera.height);
+    parallelFor(camera.height, [&](int64_t y0, int64_t y1) {
+        prepareTracingThread();
+        for (int64_t y = y0; y < y1; ++y) {
+            for (int x = 0; x < camera.width; ++x) {
+                PixelSampler sampler(mixSeed(pixels, uint64_t(y), uint64_t(x)));
+                Rgb sum = Rgb::Zero();
+                for (int s = 0; s < spp; ++s) {
+                    sampler.start(uint32_t(s));
+                    const double px = x + sampler.uniform(), py = double(y) + sampler.uniform();
+                    sampler.skipTo(4);
+                    sum += radiance(cam.origin(), cam.direction(px, py), sampler);
+                }
+                image.set(x, int(y), sum / spp);
+            }
+            g_cameraSamples.add(uint64_t(camera.width) * uint64_t(spp));
+            progress.update();
+        }
+    });
+    progress.done();
+    return image;
+}
+
 }  // namespace penumbra

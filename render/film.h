@@ -7,6 +7,7 @@
 
 #include "core/math.h"
 #include "core/rng.h"
+#include "core/sampler.h"
 #include "mesh/scene.h"
 #include "render/image.h"
 
@@ -21,5 +22,14 @@ using RadianceFn = std::function<Rgb(const Vec3& origin, const Vec3& dir, Rng& r
 // twice as fine (at least 12 x 12 beside a lamp's edge), and take the mean of all their samples.
 Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
                    const RadianceFn& radiance, bool edges = false);
+
+// Radiance arriving at the camera along origin + t dir, its decisions drawn from `sampler`.
+using SampledRadianceFn = std::function<Rgb(const Vec3& origin, const Vec3& dir, PixelSampler& sampler)>;
+
+// Renders with exactly `samplesPerPixel` samples (a power of two stratifies best), each pixel's from
+// its own PixelSampler: sample s of a pixel takes its point in the pixel from dimensions 0-1, and the
+// radiance function the dimensions from 4 on. The same image whatever the thread count.
+Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
+                          const SampledRadianceFn& radiance);
 
 }  // namespace penumbra

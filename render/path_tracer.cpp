@@ -7,17 +7,29 @@ namespace {
 
 double powerHeuristic(double a, double b) { return a * a / (a * a + b * b); }
 
+// Where each decision of a path's diffuse vertex v takes its numbers from: one dimension per decision,
+// four-dimensional groups of the pixel's Sobol sets (core/sampler.h). The camera's point in the pixel
+// takes dimensions 0-1; vertex v the walk through mirrors and glass before it (one number per choice
+// between two branches) from 4 + 12 v, its light sample from 8 + 12 v, its bounce and roulette from
+// 12 + 12 v. An Rng draws them in the same order.
+void skipTo(Rng&, uint32_t) {}
+void skipTo(PixelSampler& s, uint32_t dimension) { s.skipTo(dimension); }
+constexpr uint32_t kWalk = 4, kLight = 8, kBounce = 12, kPerVertex = 12;
+
 }  // namespace
 
-Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir, Rng& rng,
+template <typename Generator>
+Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir, Generator& rng,
                  const PathSettings& settings) {
     Rgb L = Rgb::Zero(), throughput = Rgb::Ones();
     Vec3 o = origin, d = dir;
     bool specular = true;  // the last bounce was the camera or a mirror/glass: emission counts fully
     double bsdfPdf = 0;    // solid-angle pdf of the last diffuse bounce, for MIS on emitters
-    for (int depth = 0; depth < settings.maxDepth; ++depth) {
+    for (int depth = 0, vertex = 0; depth < settings.maxDepth; ++depth, ++vertex) {
+        const uint32_t dims = kPerVertex * uint32_t(vertex);
         SurfaceHit hit = tracer.trace(o, d);
         if (hit.found && hit.material->type != MaterialType::Diffuse) {
+            skipTo(rng, dims + kWalk);
             // Through mirrors and glass to the next diffuse surface; each bounce counts as a depth.
             const SpecularWalk w = walkSpecular(tracer, std::move(hit), d, rng, settings.maxDepth - depth - 1);
             throughput *= w.throughput;
@@ -43,12 +55,14 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
         const Vec3 x = tracer.offset(hit, -d);
         // Next-event estimation: one point on the emitters.
         if (tracer.hasEmitters()) {
+            skipTo(rng, dims + kLight);
             const LightSample l = tracer.sampleLight(hit.point, hit.normal, rng);
             if (l.found())
                 L += throughput * m.reflectance * kInvPi * l.radiance * (l.cosine / l.pdf) *
                      powerHeuristic(l.pdf, l.cosine * kInvPi);
         }
         // Cosine-sampled bounce: f cos / pdf = rho.
+        skipTo(rng, dims + kBounce);
         d = cosineDirection(hit.normal, rng);
         bsdfPdf = hit.normal.dot(d) * kInvPi;
         o = x;
@@ -63,11 +77,19 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
     return L;
 }
 
+template Rgb pathRadiance(const SceneTracer&, const Vec3&, const Vec3&, Rng&, const PathSettings&);
+template Rgb pathRadiance(const SceneTracer&, const Vec3&, const Vec3&, PixelSampler&, const PathSettings&);
+
 Image renderPath(const SceneTracer& tracer, const Camera& camera, int samplesPerPixel, uint64_t seed,
                  const PathSettings& settings) {
-    return renderPixels(camera, samplesPerPixel, seed, "path tracing", [&](const Vec3& o, const Vec3& d, Rng& rng) {
-        return pathRadiance(tracer, o, d, rng, settings);
-    });
+    if (!settings.lowDiscrepancy)
+        return renderPixels(camera, samplesPerPixel, seed, "path tracing", [&](const Vec3& o, const Vec3& d, Rng& rng) {
+            return pathRadiance(tracer, o, d, rng, settings);
+        });
+    return renderPixelsSampled(camera, samplesPerPixel, seed, "path tracing",
+                               [&](const Vec3& o, const Vec3& d, PixelSampler& sampler) {
+                                   return pathRadiance(tracer, o, d, sampler, settings);
+                               });
 }
 
 }  // namespace penumbra

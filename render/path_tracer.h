@@ -4,6 +4,7 @@
 #pragma once
 
 #include "core/rng.h"
+#include "core/sampler.h"
 #include "render/film.h"
 #include "solver/tracer.h"
 
@@ -12,11 +13,19 @@ namespace penumbra {
 struct PathSettings {
     int rouletteDepth = 3;  // Russian roulette from this many bounces on
     int maxDepth = 1000;    // a guard against endless paths only; roulette ends paths long before
+    // Each pixel's decisions from a PixelSampler (renderPixelsSampled); false: independent numbers
+    // per pixel (renderPixels), as before 2026-12-06.
+    bool lowDiscrepancy = true;
 };
 
-Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir, Rng& rng,
+// Radiance along a ray, its decisions drawn from `rng`: an Rng (independent numbers) or a
+// PixelSampler (one dimension per decision, low-discrepancy over a pixel's samples).
+template <typename Generator>
+Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir, Generator& rng,
                  const PathSettings& settings);
 
+// With settings.lowDiscrepancy (the default), each pixel's samples from its own PixelSampler: the
+// camera's point in the pixel and every decision of the path stratified over the pixel's samples.
 Image renderPath(const SceneTracer& tracer, const Camera& camera, int samplesPerPixel, uint64_t seed,
                  const PathSettings& settings = {});
 

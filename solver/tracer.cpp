@@ -116,15 +116,6 @@ int specularBranches(const SurfaceHit& hit, const Vec3& dir, SpecularBranch out[
     return 2;
 }
 
-std::optional<SpecularBranch> sampleSpecular(const SurfaceHit& hit, const Vec3& dir, Rng& rng) {
-    SpecularBranch branches[2];
-    const int count = specularBranches(hit, dir, branches);
-    if (count == 0) return std::nullopt;
-    SpecularBranch b = count == 1 || rng.uniform() < branches[0].probability ? branches[0] : branches[1];
-    b.weight /= b.probability;
-    return b;
-}
-
 Vec3 samplePatchPoint(const PatchSet& patches, size_t i, double u1, double u2, double /*u3: unused*/) {
     return PatchPointSampler(patches, i)(u1, u2);
 }
@@ -241,8 +232,8 @@ SurfaceHit SceneTracer::trace(const Vec3& origin, const Vec3& dir, double tMin) 
 
 bool SceneTracer::visible(const Vec3& a, const Vec3& b) const { return !rays_->occluded(a, b, 1e-7, RayView::Exact); }
 
-LightSample SceneTracer::sampleLight(const Vec3& x, const Vec3& n, Rng& rng) const {
-    const EmitterSample e = sampleEmitter(rng);
+LightSample SceneTracer::sampleLight(const Vec3& x, const Vec3& n, double u, double u1, double u2) const {
+    const EmitterSample e = sampleEmitter(u, u1, u2);
     LightSample l;
     Vec3 w = e.point - x;
     const double d2 = w.squaredNorm();
@@ -257,14 +248,12 @@ LightSample SceneTracer::sampleLight(const Vec3& x, const Vec3& n, Rng& rng) con
     return l;
 }
 
-EmitterSample SceneTracer::sampleEmitter(Rng& rng) const {
+EmitterSample SceneTracer::sampleEmitter(double u, double u1, double u2) const {
     PENUMBRA_CHECK(!emitterCdf_.empty());
-    const double u = rng.uniform();
     double within = 0;
     const size_t i = size_t(emitterPatch_[emitterCdf_.pick(u, within)]);
     EmitterSample e;
-    const double u1 = rng.uniform(), u2 = rng.uniform();
-    e.point = samplePatchPoint(patches_, i, u1, u2, rng.uniform());
+    e.point = samplePatchPoint(patches_, i, u1, u2, 0);
     e.normal = patches_.normal[i];
     e.radiance = scene_.materialOf(scene_.objects[size_t(patches_.object[i])]).emission;
     e.pdfArea = emitterPdf_[i];

@@ -78,10 +78,24 @@ public:
     // True if some object is a mirror or glass.
     bool hasSpecular() const { return hasSpecular_; }
     // A point on the emitters, chosen in proportion to emitted power (sum over channels).
-    EmitterSample sampleEmitter(Rng& rng) const;
+    // Four numbers from `g` (an Rng or a PixelSampler): the emitter, two for the point on it, and one
+    // left unused (the draws of earlier versions, kept so that results stay bit for bit).
+    template <typename Generator>
+    EmitterSample sampleEmitter(Generator& g) const {
+        const double u = g.uniform(), u1 = g.uniform(), u2 = g.uniform();
+        g.uniform();
+        return sampleEmitter(u, u1, u2);
+    }
+    EmitterSample sampleEmitter(double u, double u1, double u2) const;
     // A point on the emitters (sampleEmitter) as seen from x on a surface of unit normal n: not found
     // when it lies behind the surface, faces away from x, or something hides it.
-    LightSample sampleLight(const Vec3& x, const Vec3& n, Rng& rng) const;
+    template <typename Generator>
+    LightSample sampleLight(const Vec3& x, const Vec3& n, Generator& g) const {
+        const double u = g.uniform(), u1 = g.uniform(), u2 = g.uniform();
+        g.uniform();
+        return sampleLight(x, n, u, u1, u2);
+    }
+    LightSample sampleLight(const Vec3& x, const Vec3& n, double u, double u1, double u2) const;
     // The density per m^2 with which sampleEmitter picks points on `patch` (0 if it does not emit).
     double emitterPdfArea(int patch) const { return patch >= 0 ? emitterPdf_[size_t(patch)] : 0; }
     // Power emitted by all surfaces, W per channel.
@@ -121,8 +135,17 @@ struct SpecularBranch {
 };
 int specularBranches(const SurfaceHit& hit, const Vec3& dir, SpecularBranch out[2]);
 // One branch for a path that follows one: chosen with its probability, its `weight` already
-// divided by it (the factor the path's throughput takes). Empty where the light is absorbed.
-std::optional<SpecularBranch> sampleSpecular(const SurfaceHit& hit, const Vec3& dir, Rng& rng);
+// divided by it (the factor the path's throughput takes). Empty where the light is absorbed. Draws a
+// number from `g` (an Rng or a PixelSampler) only where there are two branches to choose from.
+template <typename Generator>
+std::optional<SpecularBranch> sampleSpecular(const SurfaceHit& hit, const Vec3& dir, Generator& g) {
+    SpecularBranch branches[2];
+    const int count = specularBranches(hit, dir, branches);
+    if (count == 0) return std::nullopt;
+    SpecularBranch b = count == 1 || g.uniform() < branches[0].probability ? branches[0] : branches[1];
+    b.weight /= b.probability;
+    return b;
+}
 
 // How a walk through mirrors and glass ended.
 enum class WalkEnd {
@@ -146,8 +169,8 @@ struct SpecularWalk {
 // glass one branch at a time (sampleSpecular) until a diffuse surface, the open scene, an absorbing
 // back face, `maxBounces` bounces, or a throughput below `minThroughput`. `onLoss(object, share)`, if
 // given, is told the throughput each mirror or glass tint absorbs. A diffuse `first` returns at once.
-template <typename OnLoss>
-SpecularWalk walkSpecular(const SceneTracer& tracer, SurfaceHit first, Vec3 dir, Rng& rng, int maxBounces,
+template <typename Generator, typename OnLoss>
+SpecularWalk walkSpecular(const SceneTracer& tracer, SurfaceHit first, Vec3 dir, Generator& rng, int maxBounces,
                           double minThroughput, const OnLoss& onLoss) {
     SpecularWalk w;
     w.hit = std::move(first);
@@ -183,8 +206,9 @@ SpecularWalk walkSpecular(const SceneTracer& tracer, SurfaceHit first, Vec3 dir,
         w.length += w.hit.t;
     }
 }
-inline SpecularWalk walkSpecular(const SceneTracer& tracer, SurfaceHit first, const Vec3& dir, Rng& rng, int maxBounces,
-                                 double minThroughput = 0) {
+template <typename Generator>
+SpecularWalk walkSpecular(const SceneTracer& tracer, SurfaceHit first, const Vec3& dir, Generator& rng, int maxBounces,
+                          double minThroughput = 0) {
     return walkSpecular(tracer, std::move(first), dir, rng, maxBounces, minThroughput, [](int, const Rgb&) {});
 }
 

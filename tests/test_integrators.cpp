@@ -180,6 +180,36 @@ TEST(DirectLight, AgreesWithEmitterSamplingInPenumbraeAndWhereAPlaneCutsTheLamp)
     }
 }
 
+// The path tracer's low-discrepancy numbers (one dimension per decision, Owen-scrambled Sobol per
+// pixel) against independent ones at equal samples: the Cornell box at 64 x 64 and 16 samples per
+// pixel, both against the same 1,024-sample image (another seed), by the project's measure (pooled
+// L1 after the 5x5 blur) and without the blur. Measured 0.767 and 0.778 (at 256 x 256 against the
+// 4,096-sample reference: 0.83 at 16 spp, 0.77 at 64); issue 14 asks for 0.7, not reached by the
+// sampler alone. A sampler that lost its stratification (or reused a number for two decisions)
+// reads about 1.
+TEST(PathTracerSlow, LowDiscrepancyNumbersCutTheErrorAtEqualSamples) {
+    const Scene scene = test::sceneFromJson(test::sceneFile("cornell-box.json"), "cornell-box.json");
+    const PatchSet patches = meshScene(scene, {});
+    const SceneTracer tracer(scene, patches);
+    Camera camera = scene.camera;
+    camera.width = camera.height = 64;
+    const Image reference = renderPath(tracer, camera, 1024, 9);
+    PathSettings independent;
+    independent.lowDiscrepancy = false;
+    double sampled = 0, plain = 0, sampledRaw = 0, plainRaw = 0;
+    for (uint64_t seed : {1, 2, 3}) {
+        const Image a = renderPath(tracer, camera, 16, seed), b = renderPath(tracer, camera, 16, seed, independent);
+        sampled += compareBlurred(a, reference).pooledL1 / 3, plain += compareBlurred(b, reference).pooledL1 / 3;
+        sampledRaw += compareImages(a, reference).pooledL1 / 3, plainRaw += compareImages(b, reference).pooledL1 / 3;
+    }
+    std::printf(
+        "16 spp, pooled L1 after the blur: low-discrepancy %.4f, independent %.4f (ratio %.3f); without the "
+        "blur %.4f, %.4f (%.3f)\n",
+        sampled, plain, sampled / plain, sampledRaw, plainRaw, sampledRaw / plainRaw);
+    EXPECT_LT(sampled, 0.85 * plain);
+    EXPECT_LT(sampledRaw, 0.9 * plainRaw);
+}
+
 TEST(FinalGather, DarkRoomBehindASharedWallStaysBlack) {
     const Image image = gatherImage(test::sceneFile("two-rooms.json"), 600, 4, 1);
     double maxValue = 0;
