@@ -132,11 +132,23 @@ Rgb directIrradiance(const PatchSet& p, const std::vector<Rgb>& B, const RayScen
     for (size_t k = 0; k < sources.size(); ++k) {
         if (!(full[k].sum() > 0)) continue;
         const int g = std::max(1, int(std::lround(std::sqrt(rayCount * full[k].sum() / total))));
-        int seen = 0;
+        // Each point weighed by the kernel cos cos / r^2 of the closed form, and only the points in
+        // front of x (the closed form leaves out the part of a source behind x's plane, and rays to it
+        // meet x's own surface): counted plainly, the Cornell box's tall block's front face, whose
+        // plane cuts the lamp, read 12% dark in the final gather that took the same share.
+        double front = 0, arrived = 0;
+        const Vec3& nj = p.normal[sources[k]];
         for (int a = 0; a < g; ++a)
-            for (int b = 0; b < g; ++b)
-                seen += !rays.occluded(x, p.pointAt(sources[k], (a + 0.5) / g, (b + 0.5) / g), 1e-3);
-        h += full[k] * (double(seen) / (g * g));
+            for (int b = 0; b < g; ++b) {
+                const Vec3 y = p.pointAt(sources[k], (a + 0.5) / g, (b + 0.5) / g);
+                const Vec3 d = y - x;
+                const double d2 = d.squaredNorm(), cosX = n.dot(d), cosL = -nj.dot(d);
+                if (cosX <= 0 || cosL <= 0 || !(d2 > 0)) continue;
+                const double w = cosX * cosL / (d2 * d2);
+                front += w;
+                if (!rays.occluded(x, y, 1e-3)) arrived += w;
+            }
+        if (front > 0) h += full[k] * (arrived / front);
     }
     return h;
 }
