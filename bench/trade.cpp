@@ -109,7 +109,7 @@ std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b)
              [](Setting& s, int v) { s.specularRays = v; });
     }
     vary(plan, b, gather, "gather-rays", quick ? Ints{4} : Ints{4, 64}, [](Setting& s, int v) { s.gatherRays = v; });
-    vary(plan, b, gather, "spp", quick ? Ints{1} : Ints{1, 4, 8, 64}, [](Setting& s, int v) { s.spp = v; });
+    vary(plan, b, gather, "spp", quick ? Ints{1} : Ints{1, 4, 8, 32, 64}, [](Setting& s, int v) { s.spp = v; });
     vary(plan, b, {"radiosity"}, "spp", quick ? Ints{16} : Ints{1, 16}, [](Setting& s, int v) { s.spp = v; });
     // Combinations along the diagonal, coarse and fast to fine and slow: (patches, spp, gather rays),
     // the fast ones with a looser cubature (the gather reads B one bounce later, where its error fades).
