@@ -13,6 +13,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "io/atomic_file.h"
+#include "render/final_gather.h"
 #include "render/photon_map.h"
 #include "solver/solve.h"
 
@@ -142,7 +143,9 @@ std::string settingText(const Setting& s) {
         t += cat(", ", s.specularRays, " specular rays");
     t += cat(", ", s.spp, " spp");
     if (s.method == "final-gather") {
-        t += cat(", ", s.gatherRays, " gather rays");
+        // The default path reads the solve's indirect light and casts no gather rays: named only when
+        // set (where the solve holds no indirect light, the gather casts them).
+        if (s.gatherRays != GatherSettings{}.gatherRays) t += cat(", ", s.gatherRays, " gather rays");
         if (s.photons != PhotonSettings{}.photons) t += cat(", ", s.photons, " photons");
         if (s.photonK != PhotonSettings{}.nearest) t += cat(", k ", s.photonK);
     }
