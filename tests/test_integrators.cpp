@@ -15,6 +15,7 @@
 #include "render/path_tracer.h"
 #include "render/photon_map.h"
 #include "render/radiosity_view.h"
+#include "solver/radiosity/form_factor_kernel.h"
 #include "statistics.h"
 
 using namespace penumbra;
@@ -208,6 +209,41 @@ TEST(PathTracerSlow, LowDiscrepancyNumbersCutTheErrorAtEqualSamples) {
         sampled, plain, sampled / plain, sampledRaw, plainRaw, sampledRaw / plainRaw);
     EXPECT_LT(sampled, 0.85 * plain);
     EXPECT_LT(sampledRaw, 0.9 * plainRaw);
+}
+
+// A lamp of more polygons than the closed form sums at every point (a sphere, meshed): its direct
+// light by emitter sampling against the sum of the closed form over the patches that face the
+// point (on a convex lamp, exactly the ones it sees), at two points of a floor below it.
+TEST(DirectLight, AFinelyMeshedLampIsSampledToItsClosedForm) {
+    const Scene scene = test::sceneFromJson(R"({"materials": {"white": {"type": "diffuse", "reflectance": 0.5},
+                   "lamp": {"type": "diffuse", "reflectance": 0, "emission": 10}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "white",
+         "vertices": [[1.5,0,-1.5],[-1.5,0,-1.5],[-1.5,0,1.5],[1.5,0,1.5]]},
+        {"name": "bulb", "type": "sphere", "material": "lamp", "center": [0, 1, 0], "radius": 0.2}]})");
+    const PatchSet patches = meshScene(scene, {});
+    const SceneTracer tracer(scene, patches);
+    const DirectLight direct(scene, patches);
+    ASSERT_GT(direct.sources(), DirectLight::kMostPolygons) << "the sphere's patches, each a source";
+    for (const Vec3& x : {Vec3(0, 0, 0), Vec3(0.8, 0, 0.3)}) {
+        const Vec3 n(0, 1, 0);
+        double exact = 0;
+        for (size_t j = 0; j < patches.size(); ++j)
+            if (scene.objects[size_t(patches.object[j])].name == "bulb" &&
+                patches.normal[j].dot(x - patches.centroid[j]) > 0)
+                exact += pointPolygonFormFactor(x, n, patches.corners[j].data(), patches.cornerCount[j]) * kPi * 10;
+        Rng rng(3);
+        double sum = 0, sum2 = 0;
+        const int calls = 200000;
+        for (int k = 0; k < calls; ++k) {
+            const double e = direct.irradiance(tracer, x + tracer.epsilon() * n, n, 4, rng)[0];
+            sum += e, sum2 += e * e;
+        }
+        const double mean = sum / calls, sigma = std::sqrt(std::max(0.0, sum2 / calls - mean * mean) / calls);
+        std::printf("at (%g, %g, %g): emitter sampling %.5f +- %.5f, closed form over the facing patches %.5f W/m^2\n",
+                    x.x(), x.y(), x.z(), mean, sigma, exact);
+        EXPECT_NEAR(mean, exact, 4 * sigma + 0.005 * exact);
+    }
 }
 
 TEST(FinalGather, DarkRoomBehindASharedWallStaysBlack) {
