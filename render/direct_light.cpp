@@ -104,10 +104,8 @@ Rgb DirectLight::irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3
         }
         const Source& s = sources_[k];
         const Vec3 y = pointOn(s, u1, u2);
-        const Vec3 d = y - x;
-        const double d2 = d.squaredNorm(), cosX = n.dot(d), cosL = -s.normal.dot(d);
-        if (cosX <= 0 || cosL <= 0 || !(d2 > 0)) continue;
-        const double w = cosX * cosL / (d2 * d2);
+        const double w = sourceKernel(x, n, y, s.normal);
+        if (!(w > 0)) continue;
         seen[k][0] += w;
         // The ray gives up the last thousandth of its length at the lamp: a point of a quad lamp that
         // is not quite flat lies a little off the triangles Embree traces it as (as the display's

@@ -15,6 +15,15 @@ namespace penumbra {
 // (3 or 4 vertices, either winding), clipped to the half-space in front of x. Dimensionless.
 double pointPolygonFormFactor(const Vec3& x, const Vec3& n, const Vec3* poly, int count);
 
+// The kernel cos cos / r^2 between x (unit normal n) and a point y of a source whose front has unit
+// normal m, 0 where either faces away from the other: what a shadow ray to y weighs in a source's
+// visible share (directIrradiance, vertex_radiosity.h; DirectLight, render/direct_light.h).
+inline double sourceKernel(const Vec3& x, const Vec3& n, const Vec3& y, const Vec3& m) {
+    const Vec3 d = y - x;
+    const double d2 = d.squaredNorm(), cosX = n.dot(d), cosL = -m.dot(d);
+    return cosX > 0 && cosL > 0 && d2 > 0 ? cosX * cosL / (d2 * d2) : 0;
+}
+
 // Distance from x to a convex planar polygon (3 or 4 vertices).
 double pointPolygonDistance(const Vec3& x, const Vec3* poly, int count);
 

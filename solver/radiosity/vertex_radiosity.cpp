@@ -141,10 +141,8 @@ Rgb directIrradiance(const PatchSet& p, const std::vector<Rgb>& B, const RayScen
         for (int a = 0; a < g; ++a)
             for (int b = 0; b < g; ++b) {
                 const Vec3 y = p.pointAt(sources[k], (a + 0.5) / g, (b + 0.5) / g);
-                const Vec3 d = y - x;
-                const double d2 = d.squaredNorm(), cosX = n.dot(d), cosL = -nj.dot(d);
-                if (cosX <= 0 || cosL <= 0 || !(d2 > 0)) continue;
-                const double w = cosX * cosL / (d2 * d2);
+                const double w = sourceKernel(x, n, y, nj);
+                if (!(w > 0)) continue;
                 front += w;
                 if (!rays.occluded(x, y, 1e-3)) arrived += w;
             }
