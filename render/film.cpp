@@ -95,21 +95,41 @@ Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, con
     return image;
 }
 
+namespace {
+// Pixels share their sets, tile by tile: the index of a pixel's first sample is its Morton rank in
+// its 64 x 64 tile times the samples per pixel rounded up to a power of two, so any aligned 2^k x
+// 2^k block of pixels takes an aligned run of each set's indices (the index scramble permutes such
+// runs as wholes: Owen's scramble of the ranks' tree, Ahmed and Wonka 2020). A block's samples
+// together are then as well stratified as one pixel's, and neighbours' errors cancel where the image
+// is smooth: what is left is blue noise, which a 5x5 blur (or an eye) removes. Each pixel's own
+// samples are still an aligned run, a net, and each number still uniform.
+constexpr int kTileBits = 6;
+
+uint32_t mortonRank(uint32_t x, uint32_t y) {
+    uint32_t rank = 0;
+    for (int b = 0; b < kTileBits; ++b) rank |= ((x >> b) & 1u) << (2 * b) | ((y >> b) & 1u) << (2 * b + 1);
+    return rank;
+}
+}  // namespace
+
 Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
                           const SampledRadianceFn& radiance) {
     const PinholeCamera cam(camera);
     Image image(camera.width, camera.height);
     const int spp = std::max(1, samplesPerPixel);
+    uint32_t stride = 1;  // 2^12 ranks x at most 2^20 samples fit the sets' 32-bit indices
+    while (stride < uint32_t(spp)) stride *= 2;
     const uint64_t pixels = mixSeed(seed, uint64_t(Stream::Pixels));
     Progress progress(title, camera.height);
     parallelFor(camera.height, [&](int64_t y0, int64_t y1) {
         prepareTracingThread();
         for (int64_t y = y0; y < y1; ++y) {
             for (int x = 0; x < camera.width; ++x) {
-                PixelSampler sampler(mixSeed(pixels, uint64_t(y), uint64_t(x)));
+                PixelSampler sampler(mixSeed(pixels, uint64_t(y >> kTileBits), uint64_t(x >> kTileBits)));
+                const uint32_t first = mortonRank(uint32_t(x), uint32_t(y)) * stride;
                 Rgb sum = Rgb::Zero();
                 for (int s = 0; s < spp; ++s) {
-                    sampler.start(uint32_t(s));
+                    sampler.start(first + uint32_t(s));
                     const double px = x + sampler.uniform(), py = double(y) + sampler.uniform();
                     sampler.skipTo(4);
                     sum += radiance(cam.origin(), cam.direction(px, py), sampler);

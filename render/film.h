@@ -26,9 +26,11 @@ Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, con
 // Radiance arriving at the camera along origin + t dir, its decisions drawn from `sampler`.
 using SampledRadianceFn = std::function<Rgb(const Vec3& origin, const Vec3& dir, PixelSampler& sampler)>;
 
-// Renders with exactly `samplesPerPixel` samples (a power of two stratifies best), each pixel's from
-// its own PixelSampler: sample s of a pixel takes its point in the pixel from dimensions 0-1, and the
-// radiance function the dimensions from 4 on. The same image whatever the thread count.
+// Renders with exactly `samplesPerPixel` samples (a power of two stratifies best) from PixelSamplers
+// that neighbouring pixels share, tile by tile: each pixel's samples are an aligned run of the sets'
+// indices, by its Morton rank, so that any aligned block of pixels draws a net too and neighbours'
+// errors cancel (blue noise). Sample s of a pixel takes its point in the pixel from dimensions 0-1,
+// and the radiance function the dimensions from 4 on. The same image whatever the thread count.
 Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
                           const SampledRadianceFn& radiance);
 
