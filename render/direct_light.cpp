@@ -1,6 +1,7 @@
 #include "render/direct_light.h"
 
 #include <cmath>
+#include <type_traits>
 
 #include "solver/radiosity/form_factor_kernel.h"
 #include "solver/radiosity/system.h"
@@ -51,7 +52,8 @@ Vec3 DirectLight::pointOn(const Source& s, double u1, double u2) const {
     return a + r * (1 - u2) * (s.corner[size_t(b)] - a) + r * u2 * (s.corner[size_t(b + 1)] - a);
 }
 
-Rgb DirectLight::irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3& n, int rays, Rng& rng) const {
+template <typename Generator>
+Rgb DirectLight::irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3& n, int rays, Generator& rng) const {
     if (sources_.size() > kMostPolygons) {
         // Too many polygons to sum in closed form at every point (a lamp meshed finely): emitter
         // sampling, unbiased, noisy in full light too.
@@ -89,12 +91,15 @@ Rgb DirectLight::irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3
     seen.assign(count, {0, 0});
     const int side = stratumSide(rays);
     const bool grid = count == 1 && side * side == rays;
+    constexpr bool shifted = std::is_same_v<Generator, PixelSampler>;
+    double shift[2] = {0, 0};
+    if (shifted && grid) shift[0] = rng.uniform(), shift[1] = rng.uniform();
     size_t k = 0;
     for (int r = 0; r < rays; ++r) {
         double u1, u2;
         if (grid) {
-            u1 = ((r % side) + rng.uniform()) / side;
-            u2 = ((r / side) + rng.uniform()) / side;
+            u1 = ((r % side) + (shifted ? shift[0] : rng.uniform())) / side;
+            u2 = ((r / side) + (shifted ? shift[1] : rng.uniform())) / side;
         } else {
             const double u = (r + rng.uniform()) / rays * total;
             while (k + 1 < count && cumulative[k] <= u) ++k;
@@ -119,5 +124,8 @@ Rgb DirectLight::irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3
     for (size_t j = 0; j < count; ++j) E += full[j] * (seen[j][0] > 0 ? seen[j][1] / seen[j][0] : share);
     return E;
 }
+
+template Rgb DirectLight::irradiance(const SceneTracer&, const Vec3&, const Vec3&, int, Rng&) const;
+template Rgb DirectLight::irradiance(const SceneTracer&, const Vec3&, const Vec3&, int, PixelSampler&) const;
 
 }  // namespace penumbra

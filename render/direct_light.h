@@ -11,6 +11,7 @@
 
 #include "core/math.h"
 #include "core/rng.h"
+#include "core/sampler.h"
 #include "mesh/patches.h"
 #include "mesh/scene.h"
 #include "solver/tracer.h"
@@ -30,7 +31,11 @@ public:
     // kMostPolygons sources, by emitter sampling instead (tracer.sampleLight: every emitter, which
     // are then all small sources).
     static constexpr size_t kMostPolygons = 64;
-    Rgb irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3& n, int rays, Rng& rng) const;
+    // From an Rng, each ray's point jittered in its stratum; from a PixelSampler, one shift of the
+    // whole grid (two dimensions), which the sampler stratifies over the pixel's samples and its
+    // neighbours'.
+    template <typename Generator>
+    Rgb irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3& n, int rays, Generator& g) const;
 
 private:
     struct Source {

@@ -24,6 +24,17 @@ const Counter g_edgePixels("render.edge_pixels", "pixels sampled again on a fine
 constexpr int kEdgeSide = 12;
 constexpr float kLampContrast = 8;
 
+// The largest spread over mean (contrast) of pixel (x, y) and its eight neighbours: a pixel whose
+// samples differ by more than their mean, or beside one, is sampled again (a lamp may cover a
+// twentieth of a pixel that none of its few samples found).
+float edgeContrast(const std::vector<float>& contrast, int w, int h, int x, int64_t y) {
+    float most = 0;
+    for (int64_t v = std::max<int64_t>(0, y - 1); v <= std::min<int64_t>(h - 1, y + 1); ++v)
+        for (int u = std::max(0, x - 1); u <= std::min(w - 1, x + 1); ++u)
+            most = std::max(most, contrast[size_t(v) * size_t(w) + size_t(u)]);
+    return most;
+}
+
 // The sum of side x side stratified samples of pixel (x, y) and the spread of their brightness.
 struct PixelSum {
     Rgb sum = Rgb::Zero();
@@ -66,17 +77,13 @@ Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, con
         g_cameraSamples.add(uint64_t(w) * uint64_t(spp) * uint64_t(y1 - y0));
     });
     if (edges) {
-        // An edge pixel and its eight neighbours (a lamp may cover a twentieth of a pixel that none of
-        // its few samples found) are sampled again, on a finer grid, from a stream of their own.
+        // Edge pixels sampled again, on a finer grid, from a stream of their own.
         parallelFor(h, [&](int64_t y0, int64_t y1) {
             prepareTracingThread();
             uint64_t again = 0, samples = 0;
             for (int64_t y = y0; y < y1; ++y) {
                 for (int x = 0; x < w; ++x) {
-                    float most = 0;
-                    for (int64_t v = std::max<int64_t>(0, y - 1); v <= std::min<int64_t>(h - 1, y + 1); ++v)
-                        for (int u = std::max(0, x - 1); u <= std::min(w - 1, x + 1); ++u)
-                            most = std::max(most, contrast[size_t(v) * size_t(w) + size_t(u)]);
+                    const float most = edgeContrast(contrast, w, h, x, y);
                     if (!(most > 1)) continue;
                     const int fine = most > kLampContrast ? std::max(2 * side, kEdgeSide) : 2 * side;
                     Rng rng = pairRng(seed, Stream::EdgePixels, uint64_t(y), uint64_t(x));
@@ -113,33 +120,85 @@ uint32_t mortonRank(uint32_t x, uint32_t y) {
 }  // namespace
 
 Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
-                          const SampledRadianceFn& radiance) {
+                          const SampledRadianceFn& radiance, bool edges) {
     const PinholeCamera cam(camera);
-    Image image(camera.width, camera.height);
+    const int w = camera.width, h = camera.height;
+    Image image(w, h);
     const int spp = std::max(1, samplesPerPixel);
     uint32_t stride = 1;  // 2^12 ranks x at most 2^20 samples fit the sets' 32-bit indices
     while (stride < uint32_t(spp)) stride *= 2;
     const uint64_t pixels = mixSeed(seed, uint64_t(Stream::Pixels));
-    Progress progress(title, camera.height);
-    parallelFor(camera.height, [&](int64_t y0, int64_t y1) {
+    // The samples [first, first + count) of pixel (x, y) from `sampler`, and their spread.
+    const auto sample = [&](PixelSampler& sampler, int x, int64_t y, uint32_t first, int count) {
+        PixelSum p;
+        for (int s = 0; s < count; ++s) {
+            sampler.start(first + uint32_t(s));
+            const double px = x + sampler.uniform(), py = double(y) + sampler.uniform();
+            sampler.skipTo(4);
+            const Rgb L = radiance(cam.origin(), cam.direction(px, py), sampler);
+            p.sum += L;
+            p.low = std::min(p.low, L.sum()), p.high = std::max(p.high, L.sum());
+        }
+        return p;
+    };
+    std::vector<float> contrast(edges ? size_t(w) * size_t(h) : 0, 0.0f);
+    Progress progress(title, edges ? 2 * int64_t(h) : h);
+    parallelFor(h, [&](int64_t y0, int64_t y1) {
         prepareTracingThread();
         for (int64_t y = y0; y < y1; ++y) {
-            for (int x = 0; x < camera.width; ++x) {
+            for (int x = 0; x < w; ++x) {
                 PixelSampler sampler(mixSeed(pixels, uint64_t(y >> kTileBits), uint64_t(x >> kTileBits)));
-                const uint32_t first = mortonRank(uint32_t(x), uint32_t(y)) * stride;
-                Rgb sum = Rgb::Zero();
-                for (int s = 0; s < spp; ++s) {
-                    sampler.start(first + uint32_t(s));
-                    const double px = x + sampler.uniform(), py = double(y) + sampler.uniform();
-                    sampler.skipTo(4);
-                    sum += radiance(cam.origin(), cam.direction(px, py), sampler);
-                }
-                image.set(x, int(y), sum / spp);
+                const PixelSum p = sample(sampler, x, y, mortonRank(uint32_t(x), uint32_t(y)) * stride, spp);
+                if (edges) contrast[size_t(y) * size_t(w) + size_t(x)] = float((p.high - p.low) * spp / p.sum.sum());
+                image.set(x, int(y), p.sum / spp);
             }
-            g_cameraSamples.add(uint64_t(camera.width) * uint64_t(spp));
+            g_cameraSamples.add(uint64_t(w) * uint64_t(spp));
             progress.update();
         }
     });
+    if (edges && spp == 1) {
+        // One sample has no spread: a pixel's contrast is then that of its and its eight neighbours'
+        // values (a lamp's edge against the ceiling beside it).
+        const Image first = image;
+        parallelFor(h, [&](int64_t y0, int64_t y1) {
+            for (int64_t y = y0; y < y1; ++y)
+                for (int x = 0; x < w; ++x) {
+                    double low = HUGE_VAL, high = -HUGE_VAL, sum = 0;
+                    int n = 0;
+                    for (int64_t v = std::max<int64_t>(0, y - 1); v <= std::min<int64_t>(h - 1, y + 1); ++v)
+                        for (int u = std::max(0, x - 1); u <= std::min(w - 1, x + 1); ++u, ++n) {
+                            const double b = first.at(u, int(v)).sum();
+                            low = std::min(low, b), high = std::max(high, b), sum += b;
+                        }
+                    contrast[size_t(y) * size_t(w) + size_t(x)] = float((high - low) * n / sum);
+                }
+        });
+    }
+    if (edges) {
+        // Edge pixels take four times their samples again (a lamp's edge at least kEdgeSide^2,
+        // rounded to a power of two), from sets of their own.
+        const int again = 4 * int(stride), lamp = std::max(again, 128);
+        const uint64_t edgeSeed = mixSeed(seed, uint64_t(Stream::EdgePixels));
+        parallelFor(h, [&](int64_t y0, int64_t y1) {
+            prepareTracingThread();
+            uint64_t count = 0, samples = 0;
+            for (int64_t y = y0; y < y1; ++y) {
+                for (int x = 0; x < w; ++x) {
+                    const float most = edgeContrast(contrast, w, h, x, y);
+                    if (!(most > 1)) continue;
+                    const int more = most > kLampContrast ? lamp : again;
+                    PixelSampler sampler(mixSeed(edgeSeed, uint64_t(y), uint64_t(x)));
+                    const Rgb sum = image.at(x, int(y)) * spp + sample(sampler, x, y, 0, more).sum;
+                    image.set(x, int(y), sum / (spp + more));
+                    ++count;
+                    samples += uint64_t(more);
+                }
+                progress.update();
+            }
+            g_cameraSamples.add(samples);
+            g_edgePixels.add(count);
+        });
+    }
     progress.done();
     return image;
 }

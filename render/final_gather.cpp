@@ -27,7 +27,8 @@ Rgb FinalGather::radiosityAt(const SurfaceHit& y) const {
     return interpolateAt(tracer_.patches(), size_t(y.patch), y.u, y.v, corners_[size_t(y.patch)]);
 }
 
-Rgb FinalGather::trace(const Vec3& origin, const Vec3& dir, Rng& rng, int depth) const {
+template <typename Generator>
+Rgb FinalGather::trace(const Vec3& origin, const Vec3& dir, Generator& rng, int depth) const {
     const SurfaceHit hit = tracer_.trace(origin, dir);
     if (!hit.found) return Rgb::Zero();
     const Material& m = *hit.material;
@@ -45,7 +46,8 @@ Rgb FinalGather::trace(const Vec3& origin, const Vec3& dir, Rng& rng, int depth)
     return L;
 }
 
-Rgb FinalGather::reflected(const SurfaceHit& x, Rng& rng, int level) const {
+template <typename Generator>
+Rgb FinalGather::reflected(const SurfaceHit& x, Generator& rng, int level) const {
     const Rgb& rho = x.material->reflectance;
     if ((rho <= 0).all()) return Rgb::Zero();
     if (level == 0 && indirect_ && x.patch >= 0) {
@@ -73,7 +75,8 @@ double misWeight(int na, double pa, int nb, double pb) {
 }
 }  // namespace
 
-Rgb FinalGather::directIrradiance(const SurfaceHit& x, Rng& rng, int samples, int gatherRays) const {
+template <typename Generator>
+Rgb FinalGather::directIrradiance(const SurfaceHit& x, Generator& rng, int samples, int gatherRays) const {
     if (!tracer_.hasEmitters()) return Rgb::Zero();
     Rgb sum = Rgb::Zero();
     for (int s = 0; s < samples; ++s) {
@@ -87,7 +90,8 @@ Rgb FinalGather::directIrradiance(const SurfaceHit& x, Rng& rng, int samples, in
     return sum / samples;
 }
 
-Rgb FinalGather::indirectIrradiance(const SurfaceHit& x, Rng& rng, int rays, int lightSamples, int level) const {
+template <typename Generator>
+Rgb FinalGather::indirectIrradiance(const SurfaceHit& x, Generator& rng, int rays, int lightSamples, int level) const {
     const Vec3 from = x.point + tracer_.epsilon() * x.normal;
     g_gatherRays.add(uint64_t(rays));
     Rgb sum = Rgb::Zero();
@@ -116,10 +120,15 @@ Rgb FinalGather::indirectIrradiance(const SurfaceHit& x, Rng& rng, int rays, int
     return kPi * sum / rays;
 }
 
+template Rgb FinalGather::reflected(const SurfaceHit&, Rng&, int) const;
+template Rgb FinalGather::reflected(const SurfaceHit&, PixelSampler&, int) const;
+template Rgb FinalGather::trace(const Vec3&, const Vec3&, Rng&, int) const;
+template Rgb FinalGather::trace(const Vec3&, const Vec3&, PixelSampler&, int) const;
+
 Image renderFinalGather(const FinalGather& gather, const Camera& camera, int samplesPerPixel, uint64_t seed) {
-    return renderPixels(
+    return renderPixelsSampled(
         camera, samplesPerPixel, seed, "final gather",
-        [&](const Vec3& o, const Vec3& d, Rng& rng) { return gather.radiance(o, d, rng); }, true);
+        [&](const Vec3& o, const Vec3& d, PixelSampler& sampler) { return gather.radiance(o, d, sampler); }, true);
 }
 
 CornerValues meanPreservingCorners(const PatchSet& patches, CornerValues corners, const std::vector<Rgb>& means) {

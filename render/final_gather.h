@@ -42,21 +42,28 @@ public:
     FinalGather(const SceneTracer& tracer, const std::vector<std::array<Rgb, 4>>& cornerRadiosity,
                 const PhotonMap* caustics, const GatherSettings& settings, const CornerValues* indirect = nullptr);
 
-    // Radiance arriving along a camera ray.
-    Rgb radiance(const Vec3& origin, const Vec3& dir, Rng& rng) const { return trace(origin, dir, rng, 0); }
+    // Radiance arriving along a camera ray, its numbers from `g` (an Rng, or the pixel's PixelSampler).
+    template <typename Generator>
+    Rgb radiance(const Vec3& origin, const Vec3& dir, Generator& g) const {
+        return trace(origin, dir, g, 0);
+    }
 
     // Light reflected by the diffuse front face at `x` (emission excluded), W sr^-1 m^-2; `level`
     // 0 for points the camera sees, 1 for the close landings of their gather rays.
-    Rgb reflected(const SurfaceHit& x, Rng& rng, int level) const;
+    template <typename Generator>
+    Rgb reflected(const SurfaceHit& x, Generator& g, int level) const;
     // The solved radiosity at a diffuse hit, interpolated between the patch corners, W/m^2.
     Rgb radiosityAt(const SurfaceHit& y) const;
 
 private:
-    Rgb trace(const Vec3& origin, const Vec3& dir, Rng& rng, int depth) const;
+    template <typename Generator>
+    Rgb trace(const Vec3& origin, const Vec3& dir, Generator& g, int depth) const;
     // Both estimate direct light too, combined by multiple importance sampling: each needs the
     // other's sample count.
-    Rgb directIrradiance(const SurfaceHit& x, Rng& rng, int samples, int gatherRays) const;
-    Rgb indirectIrradiance(const SurfaceHit& x, Rng& rng, int rays, int lightSamples, int level) const;
+    template <typename Generator>
+    Rgb directIrradiance(const SurfaceHit& x, Generator& g, int samples, int gatherRays) const;
+    template <typename Generator>
+    Rgb indirectIrradiance(const SurfaceHit& x, Generator& g, int rays, int lightSamples, int level) const;
 
     const SceneTracer& tracer_;
     const std::vector<std::array<Rgb, 4>>& corners_;

@@ -10,6 +10,7 @@
 #include "core/optics.h"
 #include "core/parallel.h"
 #include "fixtures.h"
+#include "render/camera.h"
 #include "render/direct_light.h"
 #include "render/final_gather.h"
 #include "render/image_metrics.h"
@@ -211,6 +212,27 @@ TEST(PathTracer, NeighbouringPixelsDrawOneNet) {
     }
     EXPECT_NE(image.at(0, 0)[0], image.at(64, 0)[0]) << "two tiles drew the same set";
     EXPECT_NE(image.at(0, 0)[0], image.at(0, 64)[0]) << "two tiles drew the same set";
+}
+
+// A lamp's edge across a pixel at one sample per pixel: one sample has no spread, so the edge is told
+// by the pixel's neighbours, and the pixel sampled again (four more samples, a net over it). A lamp
+// of radiance 50 beside a wall of 1, its edge at x = 10.3 px: pixel 10 is 0.3 or 0.7 lamp, its mean
+// 15.7 or 35.3; with five samples within a fifth of the lamp's 49 of it. Without the edge pass it
+// reads 1 or 50, 14.7 or 15.3 off.
+TEST(PathTracer, ALampsEdgeIsFoundAtOneSamplePerPixel) {
+    Camera camera;
+    camera.fovYDeg = 60;
+    camera.width = camera.height = 16;
+    const PinholeCamera cam(camera);
+    const Vec3 edge = cam.direction(10.3, 8), side = edge.cross(camera.up).normalized();
+    const auto radiance = [&](const Vec3&, const Vec3& d, PixelSampler&) {
+        return Rgb::Constant(d.dot(side) < 0 ? 50 : 1);
+    };
+    const double leftIsLamp = cam.direction(10.0, 8).dot(side) < 0;
+    const double lamp = leftIsLamp ? 0.3 : 0.7, expected = 50 * lamp + (1 - lamp);
+    const Image image = renderPixelsSampled(camera, 1, 3, "test", radiance, true);
+    for (int y = 0; y < camera.height; ++y) EXPECT_NEAR(image.at(10, y)[0], expected, 49 / 5.0) << "row " << y;
+    EXPECT_EQ(image.at(2, 8)[0], leftIsLamp ? 50 : 1) << "far from the edge";
 }
 
 // The path tracer's low-discrepancy numbers (one dimension per decision, Owen-scrambled Sobol per
