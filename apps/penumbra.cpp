@@ -458,6 +458,11 @@ int main(int argc, char** argv) {
     renderCmd->add_option("--photons", render.photons.photons, "Caustic photons emitted")
         ->capture_default_str()
         ->check(CLI::Range(int64_t(1), int64_t(1) << 34));
+    renderCmd
+        ->add_option("--photon-aim", render.photons.aim,
+                     "Aim the caustic photons at spheres around the mirrors and glass (only those count; false: "
+                     "emit them over the lamps' whole hemispheres)")
+        ->capture_default_str();
     renderCmd->add_option("--photon-k", render.photons.nearest, "Photons per caustic density estimate")
         ->capture_default_str()
         ->check(CLI::Range(1, 100000));

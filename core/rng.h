@@ -36,6 +36,7 @@ enum class Stream : uint64_t {
     Closure = 0xC105ED,          // the rays that test whether the scene is closed, per patch
     ObjectReference = 0x0B1EC7,  // the path-traced per-object radiosity (pairRng: object, batch)
     CausticGrading = 0xCA0571,   // photons that find where caustics fall, for the mesh (per block)
+    PhotonAim = 0xA1A1,          // emitter points that size the aimed photon pass
 };
 
 class Rng {

@@ -175,9 +175,10 @@ Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t se
         });
     }
     if (edges) {
-        // Edge pixels take four times their samples again (a lamp's edge at least kEdgeSide^2,
-        // rounded to a power of two), from sets of their own.
-        const int again = 4 * int(stride), lamp = std::max(again, 128);
+        // Edge pixels take four times their samples again (a lamp's edge at least 64: 128 cost
+        // cornell-glass's view at one sample per pixel 1.6x the camera rays of 64 for 0.93% against
+        // 0.93%, the Cornell box 0.79% against 0.80%), from sets of their own.
+        const int again = 4 * int(stride), lamp = std::max(again, 64);
         const uint64_t edgeSeed = mixSeed(seed, uint64_t(Stream::EdgePixels));
         parallelFor(h, [&](int64_t y0, int64_t y1) {
             prepareTracingThread();

@@ -31,7 +31,7 @@ using SampledRadianceFn = std::function<Rgb(const Vec3& origin, const Vec3& dir,
 // indices, by its Morton rank, so that any aligned block of pixels draws a net too and neighbours'
 // errors cancel (blue noise). Sample s of a pixel takes its point in the pixel from dimensions 0-1,
 // and the radiance function the dimensions from 4 on. The same image whatever the thread count.
-// `edges` as for renderPixels: edge pixels take four times their samples again (at least 128
+// `edges` as for renderPixels: edge pixels take four times their samples again (at least 64
 // beside a lamp's edge).
 Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
                           const SampledRadianceFn& radiance, bool edges = false);

@@ -1,5 +1,7 @@
 #include "render/photon_map.h"
 
+#include <array>
+#include <cmath>
 #include <nanoflann.hpp>
 
 #include "core/counters.h"
@@ -45,6 +47,120 @@ using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<
 
 constexpr int64_t kChunk = 4096;  // photons per work item; the merge order is the chunk order
 
+// The spheres photons are aimed at: one around each mirror or glass object (its exact sphere, or the
+// smallest ball about its corners' box centre), a hair larger.
+struct Target {
+    Vec3 centre;
+    double radius;
+};
+std::vector<Target> specularTargets(const SceneTracer& tracer) {
+    const Scene& scene = tracer.scene();
+    const PatchSet& p = tracer.patches();
+    std::vector<Target> targets;
+    for (size_t o = 0; o < scene.objects.size(); ++o) {
+        if (scene.materialOf(scene.objects[o]).type == MaterialType::Diffuse) continue;
+        const double hair = 1e-6 * tracer.diagonal();
+        if (const RaySphere* sphere = tracer.exactSphere(int(o))) {
+            targets.push_back({sphere->center, sphere->radius * (1 + 1e-6) + hair});
+            continue;
+        }
+        Vec3 low = Vec3::Constant(HUGE_VAL), high = Vec3::Constant(-HUGE_VAL);
+        for (size_t i = 0; i < p.size(); ++i)
+            if (p.object[i] == int(o))
+                for (int k = 0; k < p.cornerCount[i]; ++k)
+                    low = low.cwiseMin(p.corners[i][size_t(k)]), high = high.cwiseMax(p.corners[i][size_t(k)]);
+        if (!(low.x() <= high.x())) continue;
+        const Vec3 centre = (low + high) / 2;
+        double radius = 0;
+        for (size_t i = 0; i < p.size(); ++i)
+            if (p.object[i] == int(o))
+                for (int k = 0; k < p.cornerCount[i]; ++k)
+                    radius = std::max(radius, (p.corners[i][size_t(k)] - centre).norm());
+        targets.push_back({centre, radius * (1 + 1e-6) + hair});
+    }
+    return targets;
+}
+
+// The cones from a lamp's point x (front normal n) that hold the targets, and a density over their
+// directions: cone s taken with a weight of its solid angle times the most cosine any of it can have
+// (none behind the lamp), uniform within. Directions in two cones have both's density.
+class Aim {
+public:
+    static constexpr size_t kMostTargets = 16;
+    Aim(const std::vector<Target>& targets, const Vec3& x, const Vec3& n) : count_(targets.size()) {
+        total_ = 0;
+        for (size_t s = 0; s < count_; ++s) {
+            Cone& c = cone_[s];
+            const Vec3 d = targets[s].centre - x;
+            const double distance = d.norm(), sin2 = std::min(1.0, std::pow(targets[s].radius / distance, 2));
+            c.axis = d / distance;
+            c.cosMax = std::sqrt(1 - sin2);
+            c.oneMinusCos = sin2 / (1 + c.cosMax);  // 1 - cos, without cancellation for small cones
+            c.solidAngle = 2 * kPi * c.oneMinusCos;
+            // The most cosine within the cone: cos(angle to the axis - the cone's half-angle).
+            const double cosAxis = n.dot(c.axis), sinAxis = std::sqrt(std::max(0.0, 1 - cosAxis * cosAxis));
+            const double most = cosAxis * c.cosMax + sinAxis * std::sqrt(sin2);
+            c.weight = most > 0 ? c.solidAngle * std::min(1.0, most) : 0;
+            total_ += c.weight;
+        }
+    }
+    // The cosine-weighted share of the hemisphere the cones can hold, at most (sizes the pass).
+    double share() const {
+        double sum = 0;
+        for (size_t s = 0; s < count_; ++s) sum += cone_[s].weight / kPi;
+        return sum;
+    }
+    bool empty() const { return !(total_ > 0); }
+    Vec3 sample(double u, double u1, double u2) const {
+        size_t s = 0;
+        double pick = u * total_;
+        while (s + 1 < count_ && pick >= cone_[s].weight) pick -= cone_[s].weight, ++s;
+        const Cone& c = cone_[s];
+        const double cosT = 1 - u1 * c.oneMinusCos, sinT = std::sqrt(std::max(0.0, 1 - cosT * cosT));
+        const double phi = 2 * kPi * u2;
+        const Vec3 a = std::abs(c.axis.x()) < 0.9 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
+        const Vec3 t = c.axis.cross(a).normalized(), b = c.axis.cross(t);
+        return (cosT * c.axis + sinT * std::cos(phi) * t + sinT * std::sin(phi) * b).normalized();
+    }
+    double pdf(const Vec3& d) const {
+        double p = 0;
+        for (size_t s = 0; s < count_; ++s)
+            if (cone_[s].weight > 0 && d.dot(cone_[s].axis) >= cone_[s].cosMax)
+                p += cone_[s].weight / total_ / cone_[s].solidAngle;
+        return p;
+    }
+
+private:
+    struct Cone {
+        Vec3 axis;
+        double cosMax, oneMinusCos, solidAngle, weight;
+    };
+    size_t count_;
+    std::array<Cone, kMostTargets> cone_;
+    double total_;
+};
+
+// How many photons to aim for `n` emitted: n times the share of the lamps' light the cones can hold
+// (over emitter points drawn by power), or 0 where aiming does not pay or cannot be done.
+int64_t aimedPhotons(const SceneTracer& tracer, const std::vector<Target>& targets, int64_t n, uint64_t seed) {
+    if (targets.empty() || targets.size() > Aim::kMostTargets || n <= 0) return 0;
+    const PatchSet& p = tracer.patches();
+    for (size_t i = 0; i < p.size(); ++i)
+        if (tracer.emitterPdfArea(int(i)) > 0)
+            for (int k = 0; k < p.cornerCount[i]; ++k)
+                for (const Target& t : targets)
+                    if ((p.corners[i][size_t(k)] - t.centre).norm() <= t.radius) return 0;
+    constexpr int kPoints = 1024;
+    double share = 0;
+    for (int j = 0; j < kPoints; ++j) {
+        Rng rng = streamRng(seed, Stream::PhotonAim, uint64_t(j));
+        const EmitterSample e = tracer.sampleEmitter(rng);
+        share += std::min(1.0, Aim(targets, e.point, e.normal).share()) / kPoints;
+    }
+    if (!(share < 0.5)) return 0;
+    return std::max<int64_t>(1, int64_t(std::ceil(double(n) * share)));
+}
+
 }  // namespace
 
 struct PhotonMap::Impl {
@@ -58,7 +174,10 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
     : impl_(std::make_unique<Impl>()), nearest_(settings.nearest) {
     Timer timer;
     maxRadius_ = settings.maxRadius * tracer.diagonal();
-    const int64_t n = tracer.hasEmitters() ? settings.photons : 0;
+    const int64_t emitting = tracer.hasEmitters() ? settings.photons : 0;
+    const std::vector<Target> targets = settings.aim ? specularTargets(tracer) : std::vector<Target>{};
+    const int64_t aimed = settings.aim ? aimedPhotons(tracer, targets, emitting, settings.seed) : 0;
+    const int64_t n = aimed > 0 ? aimed : emitting;  // photons traced
     const int64_t chunks = (n + kChunk - 1) / kChunk;
     std::vector<std::vector<Photon>> stored(static_cast<size_t>(chunks));
     std::vector<Rgb> emitted(static_cast<size_t>(chunks), Rgb::Zero());
@@ -69,10 +188,23 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
             for (int64_t k = c * kChunk; k < std::min(n, (c + 1) * kChunk); ++k) {
                 Rng rng = streamRng(settings.seed, Stream::Photons, uint64_t(k));
                 const EmitterSample e = tracer.sampleEmitter(rng);
-                // Cosine-distributed emission: the power is pi L_e / (pdf_area N).
-                Rgb power = kPi * e.radiance / (e.pdfArea * double(n));
+                Rgb power;
+                Vec3 d;
+                if (aimed > 0) {
+                    // Towards the spheres: the power is L_e cos / (pdf_area pdf_direction N).
+                    const Aim aim(targets, e.point, e.normal);
+                    if (aim.empty()) continue;
+                    const double u = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
+                    d = aim.sample(u, u1, u2);
+                    const double cosine = e.normal.dot(d), pdf = aim.pdf(d);
+                    if (!(cosine > 0) || !(pdf > 0)) continue;
+                    power = e.radiance * cosine / (e.pdfArea * pdf * double(n));
+                } else {
+                    // Cosine-distributed emission: the power is pi L_e / (pdf_area N).
+                    power = kPi * e.radiance / (e.pdfArea * double(n));
+                    d = cosineDirection(e.normal, rng);
+                }
                 emitted[size_t(c)] += power;
-                const Vec3 d = cosineDirection(e.normal, rng);
                 const SpecularWalk w = walkSpecular(tracer, tracer.trace(e.point + tracer.epsilon() * e.normal, d), d,
                                                     rng, settings.maxDepth);
                 if (w.end == WalkEnd::Diffuse && w.bounces > 0 && w.hit.frontFacing(w.dir))
@@ -84,13 +216,15 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
     });
     progress.done();
     for (size_t c = 0; c < stored.size(); ++c) {
-        stats_.emittedPower += emitted[c];
+        (aimed > 0 ? stats_.aimedPower : stats_.emittedPower) += emitted[c];
         for (const Photon& p : stored[c]) {
             impl_->cloud.points.push_back(p);
             stats_.storedPower += p.power.cast<double>().array();
         }
     }
-    stats_.emitted = n;
+    stats_.emitted = emitting;
+    stats_.aimed = aimed;
+    if (aimed > 0) stats_.emittedPower = tracer.emittedPower();
     stats_.stored = int64_t(impl_->cloud.points.size());
     g_photonsEmitted.add(uint64_t(stats_.emitted));
     g_photonsStored.add(uint64_t(stats_.stored));
@@ -117,8 +251,13 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
             3, impl_->precomputed, nanoflann::KDTreeSingleIndexAdaptorParams(16));
     }
     stats_.seconds = timer.seconds();
-    logInfo("caustic photons: ", stats_.stored, " stored of ", stats_.emitted, " emitted (", stats_.storedPower.sum(),
-            " W of ", stats_.emittedPower.sum(), " W) in ", stats_.seconds, " s");
+    if (aimed > 0)
+        logInfo("caustic photons: ", stats_.stored, " stored of ", aimed, " aimed at the mirrors and glass (for ",
+                emitting, " emitted; ", stats_.storedPower.sum(), " W of ", stats_.aimedPower.sum(),
+                " W sent at them, ", stats_.emittedPower.sum(), " W emitted) in ", stats_.seconds, " s");
+    else
+        logInfo("caustic photons: ", stats_.stored, " stored of ", stats_.emitted, " emitted (",
+                stats_.storedPower.sum(), " W of ", stats_.emittedPower.sum(), " W) in ", stats_.seconds, " s");
 }
 
 PhotonMap::~PhotonMap() = default;

@@ -1,6 +1,6 @@
 // The caustic photon map (Jensen 1996): photons leave the emitters in proportion to their power,
-// follow mirrors and glass, and are stored where they first land on a diffuse front face after at
-// least one specular bounce. Paths without a specular bounce are the radiosity solution's, so they
+// towards the mirrors and glass (PhotonSettings::aim), follow them, and are stored where they first land on a diffuse
+// front face after at least one specular bounce. Paths without a specular bounce are the radiosity solution's, so they
 // are not stored. A kd-tree (nanoflann) answers k-nearest queries for the density estimate.
 // The estimate is precomputed at every few stored photons (Christensen 1999), each valid over the
 // disc its k photons cover; a lookup then reads the nearest such point, one short query instead of
@@ -22,12 +22,19 @@ struct PhotonSettings {
     double maxRadius = 0.02;    // largest gather radius, as a fraction of the scene's diagonal
     int maxDepth = 64;          // specular bounces before a photon is dropped
     int precompute = 4;         // precompute the estimate at every this-many stored photons; 0: never
+    // Aim the photons at spheres around the mirrors and glass (Jensen's projection map): a photon
+    // that first meets a diffuse surface is never stored, so only the directions towards them
+    // need tracing. Falls back to plain emission where a lamp lies within such a sphere or they
+    // fill half of what the lamps see.
+    bool aim = true;
     uint64_t seed = 1;
 };
 
 struct PhotonStats {
     int64_t emitted = 0, stored = 0;
-    Rgb emittedPower = Rgb::Zero();  // sum of the emitted photons' powers, W
+    int64_t aimed = 0;               // photons traced towards the mirrors and glass (0: plain emission)
+    Rgb emittedPower = Rgb::Zero();  // sum of the emitted photons' powers, W (aimed: the lamps' power)
+    Rgb aimedPower = Rgb::Zero();    // sum of the aimed photons' powers: what the lamps send at the spheres
     Rgb storedPower = Rgb::Zero();   // sum of the stored photons' powers, W
     double seconds = 0;
 };

@@ -52,6 +52,7 @@ PhotonStats tracePhotons(const std::string& json, int64_t photons, Rgb& emitted)
     const SceneTracer tracer(scene, patches);
     PhotonSettings settings;
     settings.photons = photons;
+    settings.aim = false;  // the emission itself
     emitted = tracer.emittedPower();
     return PhotonMap(tracer, settings).stats();
 }
@@ -130,6 +131,59 @@ TEST(Photons, TotalPowerEqualsTheEmittersPower) {
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(stats.emittedPower[c], expected[c], 0.01 * expected[c]) << c;
     EXPECT_GT(stats.stored, 1000);
     EXPECT_LT(stats.storedPower.sum(), stats.emittedPower.sum());
+}
+
+// Photons aimed at the glass ball (cones about it from each lamp point) against photons emitted over
+// the lamps' hemispheres, two independent estimates of the same caustic: the power stored on the
+// floor in a 4 x 4 grid under the ball, bin by bin within 4.5 standard errors of the plain pass (its
+// photons' powers' spread), and the aimed pass tracing under a fifth as many photons. A wrong
+// density over a cone (its solid angle, the cosine, two lamps' mixture) moves power between bins or
+// scales it all.
+TEST(Photons, AimedAtTheGlassTheyStoreWhatPlainEmissionStores) {
+    const std::string json = R"({"materials": {
+          "warm": {"type": "diffuse", "reflectance": 0.5, "emission": [4, 2, 1]},
+          "cold": {"type": "diffuse", "reflectance": 0.5, "emission": [0.5, 1, 3]},
+          "white": {"type": "diffuse", "reflectance": 0.7},
+          "glass": {"type": "dielectric", "ior": 1.5}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "white", "vertices": [[-2,0,-2],[-2,0,2],[2,0,2],[2,0,-2]]},
+        {"name": "warm", "type": "quad", "material": "warm", "vertices": [[-1,2,-1],[1,2,-1],[1,2,0],[-1,2,0]]},
+        {"name": "cold", "type": "quad", "material": "cold", "vertices": [[-0.5,2,0.5],[0.5,2,0.5],[0.5,2,1],[-0.5,2,1]]},
+        {"name": "ball", "type": "sphere", "material": "glass", "center": [0, 0.7, 0], "radius": 0.5}]})";
+    const Scene scene = test::sceneFromJson(json);
+    const PatchSet patches = meshScene(scene, {});
+    const SceneTracer tracer(scene, patches);
+    constexpr int kGrid = 4;
+    const auto bins = [&](const PhotonMap& map, std::vector<double>& power, std::vector<double>& square) {
+        power.assign(kGrid * kGrid, 0), square.assign(kGrid * kGrid, 0);
+        for (const PhotonMap::Stored& p : map.storedPhotons()) {
+            const int i = int(std::floor((p.position.x() + 1) / 2 * kGrid)),
+                      j = int(std::floor((p.position.z() + 1) / 2 * kGrid));
+            if (p.position.y() > 1e-3 || i < 0 || j < 0 || i >= kGrid || j >= kGrid) continue;
+            power[size_t(i * kGrid + j)] += p.power.sum(),
+                square[size_t(i * kGrid + j)] += p.power.sum() * p.power.sum();
+        }
+    };
+    PhotonSettings plain;
+    plain.photons = 2000000;
+    plain.aim = false;
+    plain.precompute = 0;
+    PhotonSettings aimed = plain;
+    aimed.aim = true;
+    aimed.seed = 2;
+    const PhotonMap a(tracer, aimed), b(tracer, plain);
+    EXPECT_GT(a.stats().aimed, 0);
+    EXPECT_LT(a.stats().aimed, plain.photons / 5);
+    EXPECT_EQ(b.stats().aimed, 0);
+    std::vector<double> pa, sa, pb, sb;
+    bins(a, pa, sa);
+    bins(b, pb, sb);
+    double total = 0;
+    for (size_t k = 0; k < pa.size(); ++k) {
+        total += pb[k];
+        EXPECT_NEAR(pa[k], pb[k], 4.5 * std::sqrt(sb[k] + sa[k]) + 1e-9) << "bin " << k;
+    }
+    EXPECT_GT(total, 0.5 * b.stats().storedPower.sum()) << "the caustic falls within the grid";
 }
 
 TEST(Photons, OneLampsPhotonsCarryExactlyItsPower) {
