@@ -11,9 +11,9 @@ Rgb interpolateAt(const PatchSet& patches, size_t patch, double u, double v, con
 
 Image renderRadiosityView(const Scene& scene, const Camera& camera, const PatchSet& patches, const RayScene& rays,
                           const std::vector<std::array<Rgb, 4>>& corners, const ViewSettings& settings) {
-    return renderPixels(
+    return renderPixelsSampled(
         camera, settings.samplesPerPixel, settings.seed, "view",
-        [&](const Vec3& origin, const Vec3& dir, Rng&) -> Rgb {
+        [&](const Vec3& origin, const Vec3& dir, PixelSampler&) -> Rgb {
             const Hit hit = rays.intersect(origin, dir);
             if (hit.patch < 0) return Rgb::Zero();
             const size_t p = size_t(hit.patch);
