@@ -12,17 +12,19 @@
 namespace penumbra {
 namespace {
 const Counter g_cameraSamples("render.camera_samples", "camera rays (samples of pixels), all integrators");
-}  // namespace
-
-namespace {
 const Counter g_edgePixels("render.edge_pixels", "pixels sampled again on a finer grid (lamps' edges)");
 
-// The grid a lamp's edge pixel is sampled again on, at least: a lamp fifty times brighter than the
-// ceiling beside it leaves an edge pixel's mean off by about 50 / n^(3/2) of the ceiling with n x n
-// strata. A lamp's edge is told by its samples' spread: over eight times their mean (a wall's edge,
-// a penumbra or glass's refractions spread less, and take a grid twice as fine as the first).
-constexpr int kEdgeSide = 12;
+// A lamp's edge is told by its pixel's samples' spread: over eight times their mean (a wall's edge, a
+// penumbra or glass's refractions spread less). A lamp fifty times brighter than the ceiling beside
+// it leaves an edge pixel's mean off by about 50 / n^(3/2) of the ceiling with n^2 stratified
+// samples, so such pixels take many more.
 constexpr float kLampContrast = 8;
+
+// The sum of a pixel's samples and the spread of their brightness.
+struct PixelSum {
+    Rgb sum = Rgb::Zero();
+    double low = HUGE_VAL, high = -HUGE_VAL;
+};
 
 // The largest spread over mean (contrast) of pixel (x, y) and its eight neighbours: a pixel whose
 // samples differ by more than their mean, or beside one, is sampled again (a lamp may cover a
@@ -35,69 +37,31 @@ float edgeContrast(const std::vector<float>& contrast, int w, int h, int x, int6
     return most;
 }
 
-// The sum of side x side stratified samples of pixel (x, y) and the spread of their brightness.
-struct PixelSum {
-    Rgb sum = Rgb::Zero();
-    double low = HUGE_VAL, high = -HUGE_VAL;
-};
-PixelSum samplePixel(const PinholeCamera& cam, int x, int64_t y, int side, Rng& rng, const RadianceFn& radiance) {
-    PixelSum p;
-    for (int s = 0; s < side * side; ++s) {
-        const double px = x + ((s % side) + rng.uniform()) / side;
-        const double py = double(y) + ((s / side) + rng.uniform()) / side;
-        const Rgb L = radiance(cam.origin(), cam.direction(px, py), rng);
-        p.sum += L;
-        p.low = std::min(p.low, L.sum()), p.high = std::max(p.high, L.sum());
-    }
-    return p;
-}
 }  // namespace
 
 Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
-                   const RadianceFn& radiance, bool edges) {
+                   const RadianceFn& radiance) {
     const PinholeCamera cam(camera);
-    const int w = camera.width, h = camera.height;
-    Image image(w, h);
+    Image image(camera.width, camera.height);
     const int side = stratumSide(samplesPerPixel);
-    const int spp = side * side;
-    std::vector<float> contrast(edges ? size_t(w) * size_t(h) : 0,
-                                0.0f);  // spread of a pixel's samples over their mean
-    Progress progress(title, edges ? 2 * int64_t(h) : h);
-    parallelFor(h, [&](int64_t y0, int64_t y1) {
+    Progress progress(title, camera.height);
+    parallelFor(camera.height, [&](int64_t y0, int64_t y1) {
         prepareTracingThread();
         for (int64_t y = y0; y < y1; ++y) {
-            for (int x = 0; x < w; ++x) {
+            for (int x = 0; x < camera.width; ++x) {
                 Rng rng = pairRng(seed, Stream::Pixels, uint64_t(y), uint64_t(x));
-                const PixelSum p = samplePixel(cam, x, y, side, rng, radiance);
-                if (edges) contrast[size_t(y) * size_t(w) + size_t(x)] = float((p.high - p.low) * spp / p.sum.sum());
-                image.set(x, int(y), p.sum / spp);
+                Rgb sum = Rgb::Zero();
+                for (int s = 0; s < side * side; ++s) {
+                    const double px = x + ((s % side) + rng.uniform()) / side;
+                    const double py = double(y) + ((s / side) + rng.uniform()) / side;
+                    sum += radiance(cam.origin(), cam.direction(px, py), rng);
+                }
+                image.set(x, int(y), sum / (side * side));
             }
             progress.update();
         }
-        g_cameraSamples.add(uint64_t(w) * uint64_t(spp) * uint64_t(y1 - y0));
+        g_cameraSamples.add(uint64_t(camera.width) * uint64_t(side * side) * uint64_t(y1 - y0));
     });
-    if (edges) {
-        // Edge pixels sampled again, on a finer grid, from a stream of their own.
-        parallelFor(h, [&](int64_t y0, int64_t y1) {
-            prepareTracingThread();
-            uint64_t again = 0, samples = 0;
-            for (int64_t y = y0; y < y1; ++y) {
-                for (int x = 0; x < w; ++x) {
-                    const float most = edgeContrast(contrast, w, h, x, y);
-                    if (!(most > 1)) continue;
-                    const int fine = most > kLampContrast ? std::max(2 * side, kEdgeSide) : 2 * side;
-                    Rng rng = pairRng(seed, Stream::EdgePixels, uint64_t(y), uint64_t(x));
-                    const Rgb sum = image.at(x, int(y)) * spp + samplePixel(cam, x, y, fine, rng, radiance).sum;
-                    image.set(x, int(y), sum / (spp + fine * fine));
-                    ++again;
-                    samples += uint64_t(fine * fine);
-                }
-                progress.update();
-            }
-            g_cameraSamples.add(samples);
-            g_edgePixels.add(again);
-        });
-    }
     progress.done();
     return image;
 }
