@@ -46,6 +46,20 @@ std::string glassSlab(double ior) {
       "camera": {"position": [0, 0, -1], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov_y_deg": 2, "resolution": [8, 8]}})");
 }
 
+// Two lamps of different colours and sizes, a glass ball between them and the floor.
+std::string twoLampsAndAGlassBall() {
+    return R"({"materials": {
+          "warm": {"type": "diffuse", "reflectance": 0.5, "emission": [4, 2, 1]},
+          "cold": {"type": "diffuse", "reflectance": 0.5, "emission": [0.5, 1, 3]},
+          "white": {"type": "diffuse", "reflectance": 0.7},
+          "glass": {"type": "dielectric", "ior": 1.5}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "white", "vertices": [[-2,0,-2],[-2,0,2],[2,0,2],[2,0,-2]]},
+        {"name": "warm", "type": "quad", "material": "warm", "vertices": [[-1,2,-1],[1,2,-1],[1,2,0],[-1,2,0]]},
+        {"name": "cold", "type": "quad", "material": "cold", "vertices": [[-0.5,2,0.5],[0.5,2,0.5],[0.5,2,1],[-0.5,2,1]]},
+        {"name": "ball", "type": "sphere", "material": "glass", "center": [0, 0.7, 0], "radius": 0.5}]})";
+}
+
 PhotonStats tracePhotons(const std::string& json, int64_t photons, Rgb& emitted) {
     const Scene scene = test::sceneFromJson(json);
     const PatchSet patches = meshScene(scene, {});
@@ -113,19 +127,8 @@ TEST(GlassSlab, TransmitsWhatFresnelSays) {
 }
 
 TEST(Photons, TotalPowerEqualsTheEmittersPower) {
-    // Two lamps of different colours and sizes, a glass ball between them and the floor.
-    const std::string json = R"({"materials": {
-          "warm": {"type": "diffuse", "reflectance": 0.5, "emission": [4, 2, 1]},
-          "cold": {"type": "diffuse", "reflectance": 0.5, "emission": [0.5, 1, 3]},
-          "white": {"type": "diffuse", "reflectance": 0.7},
-          "glass": {"type": "dielectric", "ior": 1.5}},
-      "objects": [
-        {"name": "floor", "type": "quad", "material": "white", "vertices": [[-2,0,-2],[-2,0,2],[2,0,2],[2,0,-2]]},
-        {"name": "warm", "type": "quad", "material": "warm", "vertices": [[-1,2,-1],[1,2,-1],[1,2,0],[-1,2,0]]},
-        {"name": "cold", "type": "quad", "material": "cold", "vertices": [[-0.5,2,0.5],[0.5,2,0.5],[0.5,2,1],[-0.5,2,1]]},
-        {"name": "ball", "type": "sphere", "material": "glass", "center": [0, 0.7, 0], "radius": 0.5}]})";
     Rgb expected;
-    const PhotonStats stats = tracePhotons(json, 200000, expected);
+    const PhotonStats stats = tracePhotons(twoLampsAndAGlassBall(), 200000, expected);
     // pi L_e A per lamp: the tracer's sum is the closed form.
     EXPECT_NEAR(expected[0], kPi * (4 * 2 + 0.5 * 0.5), 1e-9);
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(stats.emittedPower[c], expected[c], 0.01 * expected[c]) << c;
@@ -140,17 +143,7 @@ TEST(Photons, TotalPowerEqualsTheEmittersPower) {
 // density over a cone (its solid angle, the cosine, two lamps' mixture) moves power between bins or
 // scales it all.
 TEST(Photons, AimedAtTheGlassTheyStoreWhatPlainEmissionStores) {
-    const std::string json = R"({"materials": {
-          "warm": {"type": "diffuse", "reflectance": 0.5, "emission": [4, 2, 1]},
-          "cold": {"type": "diffuse", "reflectance": 0.5, "emission": [0.5, 1, 3]},
-          "white": {"type": "diffuse", "reflectance": 0.7},
-          "glass": {"type": "dielectric", "ior": 1.5}},
-      "objects": [
-        {"name": "floor", "type": "quad", "material": "white", "vertices": [[-2,0,-2],[-2,0,2],[2,0,2],[2,0,-2]]},
-        {"name": "warm", "type": "quad", "material": "warm", "vertices": [[-1,2,-1],[1,2,-1],[1,2,0],[-1,2,0]]},
-        {"name": "cold", "type": "quad", "material": "cold", "vertices": [[-0.5,2,0.5],[0.5,2,0.5],[0.5,2,1],[-0.5,2,1]]},
-        {"name": "ball", "type": "sphere", "material": "glass", "center": [0, 0.7, 0], "radius": 0.5}]})";
-    const Scene scene = test::sceneFromJson(json);
+    const Scene scene = test::sceneFromJson(twoLampsAndAGlassBall());
     const PatchSet patches = meshScene(scene, {});
     const SceneTracer tracer(scene, patches);
     constexpr int kGrid = 4;
