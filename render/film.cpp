@@ -12,7 +12,8 @@
 namespace penumbra {
 namespace {
 const Counter g_cameraSamples("render.camera_samples", "camera rays (samples of pixels), all integrators");
-const Counter g_edgePixels("render.edge_pixels", "pixels sampled again on a finer grid (lamps' edges)");
+const Counter g_edgePixels("render.edge_pixels",
+                           "edge pixels sampled again with four times their samples (at least 64 at a lamp's edge)");
 
 // A lamp's edge is told by its pixel's samples' spread: over eight times their mean (a wall's edge, a
 // penumbra or glass's refractions spread less). A lamp fifty times brighter than the ceiling beside
