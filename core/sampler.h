@@ -5,7 +5,8 @@
 // samples (a power of two of them: a (t, m, 4)-net per group), the groups are independent of each
 // other, and every number is uniform on its own, so estimates stay unbiased. Deterministic for a
 // seed, whatever thread draws it. Has the uniform() of Rng, so code templated on its generator
-// takes either.
+// takes either. Items may share one seed's sets and take aligned runs of its indices (the pixels of
+// a tile, render/film.cpp): then any aligned block of items draws a net too.
 #pragma once
 
 #include <algorithm>
