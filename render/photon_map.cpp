@@ -144,12 +144,13 @@ private:
 // (over emitter points drawn by power), or 0 where aiming does not pay or cannot be done.
 int64_t aimedPhotons(const SceneTracer& tracer, const std::vector<Target>& targets, int64_t n, uint64_t seed) {
     if (targets.empty() || targets.size() > Aim::kMostTargets || n <= 0) return 0;
+    // A lamp point inside a sphere sees it in every direction: no cone holds it. Any lamp patch
+    // within reach of a sphere (its centroid nearer than the two radii) keeps plain emission.
     const PatchSet& p = tracer.patches();
     for (size_t i = 0; i < p.size(); ++i)
         if (tracer.emitterPdfArea(int(i)) > 0)
-            for (int k = 0; k < p.cornerCount[i]; ++k)
-                for (const Target& t : targets)
-                    if ((p.corners[i][size_t(k)] - t.centre).norm() <= t.radius) return 0;
+            for (const Target& t : targets)
+                if ((p.centroid[i] - t.centre).norm() <= t.radius + p.radius[i]) return 0;
     constexpr int kPoints = 1024;
     double share = 0;
     for (int j = 0; j < kPoints; ++j) {

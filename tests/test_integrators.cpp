@@ -179,6 +179,28 @@ TEST(Photons, AimedAtTheGlassTheyStoreWhatPlainEmissionStores) {
     EXPECT_GT(total, 0.5 * b.stats().storedPower.sum()) << "the caustic falls within the grid";
 }
 
+// A ball through the middle of a lamp (none of the lamp's corners in it): from the points inside it
+// every direction meets the ball, which no cone holds, so the photons are emitted plainly.
+TEST(Photons, ABallThroughALampIsNotAimedAt) {
+    const Scene scene = test::sceneFromJson(R"({"materials": {
+          "lamp": {"type": "diffuse", "reflectance": 0.5, "emission": 1},
+          "white": {"type": "diffuse", "reflectance": 0.7},
+          "glass": {"type": "dielectric", "ior": 1.5}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "white", "vertices": [[-2,0,-2],[-2,0,2],[2,0,2],[2,0,-2]]},
+        {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[-1,2,-1],[1,2,-1],[1,2,1],[-1,2,1]]},
+        {"name": "ball", "type": "sphere", "material": "glass", "center": [0.5, 2, 0.5], "radius": 0.3}]})");
+    MeshingOptions coarse;
+    coarse.patchSize = 1;  // the lamp in 2 x 2 patches, the ball in the middle of one
+    const PatchSet patches = meshScene(scene, coarse);
+    const SceneTracer tracer(scene, patches);
+    PhotonSettings settings;
+    settings.photons = 20000;
+    const PhotonMap map(tracer, settings);
+    EXPECT_EQ(map.stats().aimed, 0);
+    EXPECT_GT(map.stats().stored, 0);
+}
+
 TEST(Photons, OneLampsPhotonsCarryExactlyItsPower) {
     const std::string json = R"({"materials": {"lamp": {"type": "diffuse", "reflectance": 0.5, "emission": [3, 2, 1]},
           "chrome": {"type": "mirror", "reflectance": 0.9}},
