@@ -56,26 +56,24 @@ struct Target {
 std::vector<Target> specularTargets(const SceneTracer& tracer) {
     const Scene& scene = tracer.scene();
     const PatchSet& p = tracer.patches();
+    const std::vector<std::vector<size_t>> byObject = p.byObject(scene.objects.size());
+    const double hair = 1e-6 * tracer.diagonal();
     std::vector<Target> targets;
     for (size_t o = 0; o < scene.objects.size(); ++o) {
         if (scene.materialOf(scene.objects[o]).type == MaterialType::Diffuse) continue;
-        const double hair = 1e-6 * tracer.diagonal();
         if (const RaySphere* sphere = tracer.exactSphere(int(o))) {
             targets.push_back({sphere->center, sphere->radius * (1 + 1e-6) + hair});
             continue;
         }
-        Vec3 low = Vec3::Constant(HUGE_VAL), high = Vec3::Constant(-HUGE_VAL);
-        for (size_t i = 0; i < p.size(); ++i)
-            if (p.object[i] == int(o))
-                for (int k = 0; k < p.cornerCount[i]; ++k)
-                    low = low.cwiseMin(p.corners[i][size_t(k)]), high = high.cwiseMax(p.corners[i][size_t(k)]);
-        if (!(low.x() <= high.x())) continue;
-        const Vec3 centre = (low + high) / 2;
+        Eigen::AlignedBox3d box;
+        for (size_t i : byObject[o])
+            for (int k = 0; k < p.cornerCount[i]; ++k) box.extend(p.corners[i][size_t(k)]);
+        if (box.isEmpty()) continue;
+        const Vec3 centre = box.center();
         double radius = 0;
-        for (size_t i = 0; i < p.size(); ++i)
-            if (p.object[i] == int(o))
-                for (int k = 0; k < p.cornerCount[i]; ++k)
-                    radius = std::max(radius, (p.corners[i][size_t(k)] - centre).norm());
+        for (size_t i : byObject[o])
+            for (int k = 0; k < p.cornerCount[i]; ++k)
+                radius = std::max(radius, (p.corners[i][size_t(k)] - centre).norm());
         targets.push_back({centre, radius * (1 + 1e-6) + hair});
     }
     return targets;
@@ -118,8 +116,8 @@ public:
         const Cone& c = cone_[s];
         const double cosT = 1 - u1 * c.oneMinusCos, sinT = std::sqrt(std::max(0.0, 1 - cosT * cosT));
         const double phi = 2 * kPi * u2;
-        const Vec3 a = std::abs(c.axis.x()) < 0.9 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
-        const Vec3 t = c.axis.cross(a).normalized(), b = c.axis.cross(t);
+        Vec3 t, b;
+        orthonormalBasis(c.axis, t, b);
         return (cosT * c.axis + sinT * std::cos(phi) * t + sinT * std::sin(phi) * b).normalized();
     }
     double pdf(const Vec3& d) const {
