@@ -30,11 +30,17 @@ struct PixelSum {
 // The largest spread over mean (contrast) of pixel (x, y) and its eight neighbours: a pixel whose
 // samples differ by more than their mean, or beside one, is sampled again (a lamp may cover a
 // twentieth of a pixel that none of its few samples found).
+// Calls f(u, v) for pixel (x, y) and its neighbours within a w x h image.
+template <typename F>
+void forNeighbourhood(int w, int h, int x, int64_t y, const F& f) {
+    for (int64_t v = std::max<int64_t>(0, y - 1); v <= std::min<int64_t>(h - 1, y + 1); ++v)
+        for (int u = std::max(0, x - 1); u <= std::min(w - 1, x + 1); ++u) f(u, v);
+}
+
 float edgeContrast(const std::vector<float>& contrast, int w, int h, int x, int64_t y) {
     float most = 0;
-    for (int64_t v = std::max<int64_t>(0, y - 1); v <= std::min<int64_t>(h - 1, y + 1); ++v)
-        for (int u = std::max(0, x - 1); u <= std::min(w - 1, x + 1); ++u)
-            most = std::max(most, contrast[size_t(v) * size_t(w) + size_t(u)]);
+    forNeighbourhood(w, h, x, y,
+                     [&](int u, int64_t v) { most = std::max(most, contrast[size_t(v) * size_t(w) + size_t(u)]); });
     return most;
 }
 
@@ -124,17 +130,15 @@ Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t se
     if (edges && spp == 1) {
         // One sample has no spread: a pixel's contrast is then that of its and its eight neighbours'
         // values (a lamp's edge against the ceiling beside it).
-        const Image first = image;
         parallelFor(h, [&](int64_t y0, int64_t y1) {
             for (int64_t y = y0; y < y1; ++y)
                 for (int x = 0; x < w; ++x) {
                     double low = HUGE_VAL, high = -HUGE_VAL, sum = 0;
                     int n = 0;
-                    for (int64_t v = std::max<int64_t>(0, y - 1); v <= std::min<int64_t>(h - 1, y + 1); ++v)
-                        for (int u = std::max(0, x - 1); u <= std::min(w - 1, x + 1); ++u, ++n) {
-                            const double b = first.at(u, int(v)).sum();
-                            low = std::min(low, b), high = std::max(high, b), sum += b;
-                        }
+                    forNeighbourhood(w, h, x, y, [&](int u, int64_t v) {
+                        const double b = image.at(u, int(v)).sum();
+                        low = std::min(low, b), high = std::max(high, b), sum += b, ++n;
+                    });
                     contrast[size_t(y) * size_t(w) + size_t(x)] = float((high - low) * n / sum);
                 }
         });
