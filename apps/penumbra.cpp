@@ -48,7 +48,7 @@ struct SolveCli {
     SolveOptions options;
     double maxMemoryGiB = 0;
     int viewSpp = 4;
-    CLI::Option *patches = nullptr, *perObject = nullptr, *ffRays = nullptr;
+    CLI::Option *patches = nullptr, *perObject = nullptr, *ffRays = nullptr, *ffNoise = nullptr;
 
     // The options as the solve takes them, with what the command line leaves to depend on others.
     SolveOptions resolved(const CommonOptions& common) const {
@@ -101,6 +101,7 @@ void addSolveOptions(CLI::App* cmd, SolveCli& s) {
         if (std::string(e.key) == "patches") s.patches = option;
         if (std::string(e.key) == "patches_per_object") s.perObject = option;
         if (std::string(e.key) == "ff_rays") s.ffRays = option;
+        if (std::string(e.key) == "ff_noise") s.ffNoise = option;
     }
     std::string solverHelp;
     for (const SolverInfo& e : solverRegistry())
@@ -178,7 +179,10 @@ Camera cameraFor(const Scene& scene, const RenderCli& c) {
     return camera;
 }
 
-SolveResult solutionFor(const Scene& scene, const RenderCli& c, SolveCli& s, const CommonOptions& common) {
+// The stored solution, or a solve made now; `gatherSpp` > 0: for final-gathered images of that many
+// samples per pixel.
+SolveResult solutionFor(const Scene& scene, const RenderCli& c, SolveCli& s, const CommonOptions& common,
+                        int gatherSpp) {
     if (!c.solution.empty()) {
         SolveResult stored = readSolution((std::filesystem::path(c.solution) / "solution.bin").string());
         if (stored.sceneFingerprint != scene.fingerprint)
@@ -189,7 +193,15 @@ SolveResult solutionFor(const Scene& scene, const RenderCli& c, SolveCli& s, con
         return stored;
     }
     logInfo("no --solution given: solving first");
-    SolveResult r = solveScene(scene, s.resolved(common));
+    SolveOptions options = s.resolved(common);
+    // A solve for final-gathered images need not be quieter than they are.
+    if (gatherSpp > 0 && s.ffNoise->count() == 0) {
+        options.formFactors.objectNoise = formFactorNoiseFor(gatherSpp);
+        if (options.formFactors.objectNoise != s.options.formFactors.objectNoise)
+            logInfo("form factors: --ff-noise ", options.formFactors.objectNoise, " for images of ", gatherSpp,
+                    " samples per pixel, whose own noise hides the solve's below it");
+    }
+    SolveResult r = solveScene(scene, options);
     r.F = FormFactorMatrix();  // views need the radiosity, not the matrix
     return r;
 }
@@ -212,7 +224,7 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
             logInfo("the ", integrator, " integrator needs no solution: --solution ", c.solution, " is not read");
         stored.patches = meshScene(scene, s.options.meshing);
     } else {
-        stored = solutionFor(scene, c, s, common);
+        stored = solutionFor(scene, c, s, common, integrator == "final-gather" ? spp : 0);
     }
     // One camera, or a turntable of them: OUT-000.exr, OUT-001.exr, ... and OUT-orbit.json.
     std::vector<Camera> cameras{camera};
@@ -263,7 +275,7 @@ int runView(RenderCli& c, SolveCli& s, ViewerOptions& options, const CommonOptio
     if (!options.screenshot.empty() && std::filesystem::path(options.screenshot).extension() != ".png")
         throw Error(cat("--screenshot ", options.screenshot, ": expected a .png file name"));
     requireDisplay();  // before any solving
-    const SolveResult stored = solutionFor(scene, c, s, common);
+    const SolveResult stored = solutionFor(scene, c, s, common, 0);
     if (!c.solution.empty()) {
         std::ifstream report((std::filesystem::path(c.solution) / "report.json").string());
         std::stringstream text;

@@ -139,6 +139,7 @@ std::string settingText(const Setting& s) {
     else if (s.ffRays < 0)
         t += cat(", analytic FF", s.ffTolerance != CubatureSettings{}.tolerance ? cat(" tol ", s.ffTolerance) : "");
     if (s.tolerance != SolverSettings{}.tolerance) t += cat(", tol ", s.tolerance);
+    if (s.ffNoise() != FormFactorSettings{}.objectNoise) t += cat(", ff-noise ", s.ffNoise());
     if (s.specularRays != SpecularSettings{}.pathsPerPatch && s.method != "path")
         t += cat(", ", s.specularRays, " specular rays");
     t += cat(", ", s.spp, " spp");

@@ -30,6 +30,11 @@
 #include "solver/tracer.h"
 
 namespace penumbra::bench {
+
+double Setting::ffNoise() const {
+    return method == "final-gather" ? formFactorNoiseFor(spp) : FormFactorSettings{}.objectNoise;
+}
+
 namespace {
 
 // The settings every sweep starts from: the command line's defaults (quick: smaller).
@@ -242,10 +247,10 @@ private:
     LogLevel userLevel_;
     std::vector<Setting> plan_;
     // The solves made so far, by what makes one: every setting of the solve, with this tolerance.
-    using SolveKey = std::tuple<int, int, double, int, int, double, double, int, std::string>;
+    using SolveKey = std::tuple<int, int, double, int, int, double, double, int, std::string, double>;
     static SolveKey keyOf(const Setting& s, double tolerance) {
         return {s.patches, s.visibilityRays, s.ffTolerance,  s.ffRays, s.specularRays,
-                tolerance, s.refine,         s.refineBudget, s.solver};
+                tolerance, s.refine,         s.refineBudget, s.solver, s.ffNoise()};
     }
     std::map<SolveKey, std::unique_ptr<SolveRecord>> solves_;
     PatchSet pathPatches_;
@@ -372,7 +377,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
         if (p.method != "path" && p.patches == s.patches && p.visibilityRays == s.visibilityRays &&
             p.ffTolerance == s.ffTolerance && p.ffRays == s.ffRays && p.specularRays == s.specularRays &&
             p.refine == s.refine && p.refineBudget == s.refineBudget && p.solver == s.solver &&
-            s.solver != "hierarchical" &&
+            p.ffNoise() == s.ffNoise() && s.solver != "hierarchical" &&
             std::find(tolerances.begin(), tolerances.end(), p.tolerance) == tolerances.end())
             tolerances.push_back(p.tolerance);
     SolveOptions o;
@@ -382,6 +387,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
     if (s.ffRays != 0) o.formFactors.method = s.ffRays > 0 ? "rays" : "analytic";
     if (s.ffRays > 0) o.formFactors.raysPerPatch = s.ffRays, o.manyObjectsRays = 0;
     o.formFactors.seed = options_.seed;
+    o.formFactors.objectNoise = s.ffNoise();
     o.specular.pathsPerPatch = s.specularRays;
     o.solverSettings.tolerance = tolerances.front();
     o.solver = s.solver;

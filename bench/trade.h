@@ -41,6 +41,9 @@ struct Setting {
     double refine = 0;                    // > 0: adaptive subdivision from `patches` to this tolerance
     int refineBudget = 0;                 // and at most this many patches
     std::string solver = "gauss-seidel";  // or "hierarchical" (then `patches` sets the finest elements)
+    // The form factors' noise target (--ff-noise) as `render` sets it: for final-gathered images of
+    // `spp`, formFactorNoiseFor(spp); else the solve's default.
+    double ffNoise() const;
 };
 
 // What one run cost and how close it came. Seconds are wall seconds of producing the image from

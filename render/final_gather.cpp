@@ -1,11 +1,14 @@
 #include "render/final_gather.h"
 
+#include <algorithm>
+#include <cmath>
 #include <memory>
 
 #include "core/counters.h"
 #include "core/log.h"
 #include "core/optics.h"
 #include "render/radiosity_view.h"
+#include "solver/radiosity/form_factors.h"
 
 namespace penumbra {
 namespace {
@@ -124,6 +127,12 @@ template Rgb FinalGather::reflected(const SurfaceHit&, Rng&, int) const;
 template Rgb FinalGather::reflected(const SurfaceHit&, PixelSampler&, int) const;
 template Rgb FinalGather::trace(const Vec3&, const Vec3&, Rng&, int) const;
 template Rgb FinalGather::trace(const Vec3&, const Vec3&, PixelSampler&, int) const;
+
+double formFactorNoiseFor(int samplesPerPixel) {
+    const double kNoise = FormFactorSettings{}.objectNoise;
+    constexpr int kFullSamples = 16;
+    return kNoise * std::sqrt(double(kFullSamples) / double(std::clamp(samplesPerPixel, 1, kFullSamples)));
+}
 
 Image renderFinalGather(const FinalGather& gather, const Camera& camera, int samplesPerPixel, uint64_t seed) {
     return renderPixelsSampled(

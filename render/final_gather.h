@@ -75,6 +75,13 @@ private:
 
 Image renderFinalGather(const FinalGather& gather, const Camera& camera, int samplesPerPixel, uint64_t seed);
 
+// The form factors' noise target (--ff-noise) of a solve made for final-gathered images of
+// `samplesPerPixel`: the solve's default (0.5%) from 16 samples up, and as 1/sqrt(samples) above it
+// below (2% at 1 sample), where the image's own noise hides the solve's. Cornell box, 256x256, seeds
+// 1-2: at 1 spp 0.80-0.84% in 0.32-0.35 s with 0.5%, 0.83-0.87% in 0.26 s with 2%; at 16 spp 0.47%
+// with 0.5%, 0.53-0.55% with no rays cast again (docs/performance.md).
+double formFactorNoiseFor(int samplesPerPixel);
+
 // The corner values shifted, patch by patch, so that their mean (the mean of the interpolation over
 // the patch) is the patch's radiosity `means`. What a gather ray reads where it lands: the displayed
 // corners follow the light across the patch, but their mean is not the solve's (the direct light of

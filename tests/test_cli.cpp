@@ -284,6 +284,26 @@ TEST(CliErrors, RenderWithoutCameraIsRefused) {
     EXPECT_FALSE(fs::exists(test::tempDir() + "/nocam.exr"));
 }
 
+TEST(Cli, ASolveForFewSamplesIsNoQuieterThanTheImage) {
+    // render without --solution sets the form factors' noise target by its samples per pixel
+    // (formFactorNoiseFor: 2% at 1 spp), unless --ff-noise is given or the image is no final gather.
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
+    const std::string out = test::tempDir() + "/few";
+    const std::string common = cat(" --patches 200 --resolution 16x16 -v --out ", out, ".exr");
+    const CommandResult one = run(cat("render ", scene, common, " --spp 1"));
+    ASSERT_EQ(one.status, 0) << one.output;
+    EXPECT_NE(one.output.find("--ff-noise 0.02 for images of 1 samples"), std::string::npos) << one.output;
+    const CommandResult given = run(cat("render ", scene, common, " --spp 1 --ff-noise 0.005"));
+    ASSERT_EQ(given.status, 0) << given.output;
+    EXPECT_EQ(given.output.find("for images of"), std::string::npos) << given.output;
+    const CommandResult full = run(cat("render ", scene, common, " --spp 16"));
+    ASSERT_EQ(full.status, 0) << full.output;
+    EXPECT_EQ(full.output.find("for images of"), std::string::npos) << full.output;
+    const CommandResult view = run(cat("render ", scene, common, " --spp 1 --integrator radiosity"));
+    ASSERT_EQ(view.status, 0) << view.output;
+    EXPECT_EQ(view.output.find("for images of"), std::string::npos) << view.output;
+}
+
 TEST(Cli, GlassSceneRendersWithoutASolutionAndAgainstThePathTracer) {
     // Without --solution, render solves first; with mirrors and glass it traces caustic photons.
     const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-glass.json";
