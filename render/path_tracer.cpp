@@ -69,7 +69,7 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
         throughput *= m.reflectance;
         specular = false;
         if (depth + 1 >= settings.rouletteDepth) {
-            const double q = std::min(0.95, throughput.maxCoeff());
+            const double q = std::min(0.95, throughput.maxCoeff() / settings.rouletteThroughput);
             if (q <= 0 || rng.uniform() >= q) break;
             throughput /= q;
         }

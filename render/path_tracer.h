@@ -12,6 +12,12 @@ namespace penumbra {
 
 struct PathSettings {
     int rouletteDepth = 3;  // Russian roulette from this many bounces on
+    // ... of the paths whose throughput (its largest channel) fell below this: they go on with
+    // probability throughput / rouletteThroughput, every other path with 0.95. At 1 (until
+    // 2026-12-06) a path in a white room went on with probability about 0.75 at each bounce; at 0.25
+    // the Cornell box at 16 spp has 0.77x the error for 1.3x the rays, cornell-glass at 64 spp 0.80x
+    // for 1.3x the time (docs/performance.md, "Russian roulette").
+    double rouletteThroughput = 0.25;
     int maxDepth = 1000;    // a guard against endless paths only; roulette ends paths long before
     // Each pixel's decisions from a PixelSampler (renderPixelsSampled); false: independent numbers
     // per pixel (renderPixels), as before 2026-12-06.
