@@ -18,7 +18,7 @@ struct PathSettings {
     // the Cornell box at 16 spp has 0.77x the error for 1.3x the rays, cornell-glass at 64 spp 0.80x
     // for 1.3x the time (docs/performance.md, "Russian roulette").
     double rouletteThroughput = 0.25;
-    int maxDepth = 1000;    // a guard against endless paths only; roulette ends paths long before
+    int maxDepth = 1000;  // a guard against endless paths only; roulette ends paths long before
     // Each pixel's decisions from a PixelSampler (renderPixelsSampled); false: independent numbers
     // per pixel (renderPixels), as before 2026-12-06.
     bool lowDiscrepancy = true;
