@@ -1,10 +1,13 @@
 #include "render/direct_light.h"
 
+#include <atomic>
 #include <cmath>
 #include <type_traits>
 
+#include "core/parallel.h"
 #include "solver/radiosity/form_factor_kernel.h"
 #include "solver/radiosity/system.h"
+#include "solver/shafts.h"
 
 namespace penumbra {
 
@@ -20,6 +23,7 @@ DirectLight::DirectLight(const Scene& scene, const PatchSet& patches) {
         Source s;
         if (polygon) {
             whole[size_t(o)] = 1;
+            s.object = o;
             s.count = int(object.vertices.size());
             for (int k = 0; k < s.count; ++k) s.corner[size_t(k)] = object.vertices[size_t(k)];
         } else {
@@ -52,8 +56,59 @@ Vec3 DirectLight::pointOn(const Source& s, double u1, double u2) const {
     return a + r * (1 - u2) * (s.corner[size_t(b)] - a) + r * u2 * (s.corner[size_t(b + 1)] - a);
 }
 
+double DirectLight::proveClearShafts(const SceneTracer& tracer) {
+    const Scene& scene = tracer.scene();
+    const PatchSet& patches = tracer.patches();
+    clear_.clear();
+    if (sources_.empty() || sources_.size() > 64) return 0;
+    std::vector<RaySphere> spheres;
+    std::vector<char> replaced(patches.size(), 0);
+    for (size_t o = 0; o < scene.objects.size(); ++o)
+        if (const RaySphere* sphere = tracer.exactSphere(int(o))) spheres.push_back(*sphere);
+    for (size_t i = 0; i < patches.size(); ++i) replaced[i] = tracer.exactSphere(patches.object[i]) != nullptr;
+    const ClearShafts shafts(patches, spheres, replaced);
+    clear_.assign(patches.size(), 0);
+    std::atomic<uint64_t> facing{0}, proved{0};
+    parallelFor(
+        int64_t(patches.size()),
+        [&](int64_t begin, int64_t end) {
+            uint64_t myFacing = 0, myProved = 0;
+            for (int64_t ii = begin; ii < end; ++ii) {
+                const size_t i = size_t(ii);
+                if (replaced[i]) continue;
+                const SceneObject& object = scene.objects[size_t(patches.object[i])];
+                // The segments start where the shadow rays do: off the surface by the tracer's epsilon.
+                ShaftEnd a;
+                a.count = patches.cornerCount[i];
+                for (int k = 0; k < a.count; ++k)
+                    a.corner[size_t(k)] = patches.corners[i][size_t(k)] + tracer.epsilon() * patches.normal[i];
+                a.normal = patches.normal[i];
+                const bool flat = object.type == ShapeType::Quad || object.type == ShapeType::Triangle;
+                a.object = flat ? patches.object[i] : -1;
+                for (size_t k = 0; k < sources_.size(); ++k) {
+                    const Source& s = sources_[k];
+                    if (!(s.normal.dot(patches.centroid[i] - s.centre) > 0) ||
+                        !(a.normal.dot(s.centre - patches.centroid[i]) > 0))
+                        continue;
+                    ++myFacing;
+                    ShaftEnd b;
+                    b.count = s.count;
+                    b.corner = s.corner;
+                    b.normal = s.normal;
+                    b.object = s.object;
+                    if (shafts.clear(a, b)) clear_[i] |= uint64_t(1) << k, ++myProved;
+                }
+            }
+            facing += myFacing, proved += myProved;
+        },
+        64);
+    return facing > 0 ? double(proved) / double(facing) : 0;
+}
+
 template <typename Generator>
-Rgb DirectLight::irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3& n, int rays, Generator& rng) const {
+Rgb DirectLight::irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3& n, int rays, Generator& rng,
+                            int patch) const {
+    const uint64_t proved = patch >= 0 && size_t(patch) < clear_.size() ? clear_[size_t(patch)] : 0;
     if (sources_.size() > kMostPolygons) {
         // Too many polygons to sum in closed form at every point (a lamp meshed finely): emitter
         // sampling, unbiased, noisy in full light too.
@@ -115,7 +170,7 @@ Rgb DirectLight::irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3
         // The ray gives up the last thousandth of its length at the lamp: a point of a quad lamp that
         // is not quite flat lies a little off the triangles Embree traces it as (as the display's
         // vertex rays do, vertex_radiosity.h).
-        if (tracer.visible(x, y + 1e-3 * (x - y))) seen[k][1] += w;
+        if (((proved >> k) & 1) || tracer.visible(x, y + 1e-3 * (x - y))) seen[k][1] += w;
     }
     double front = 0, arrived = 0;
     for (const auto& c : seen) front += c[0], arrived += c[1];
@@ -125,7 +180,7 @@ Rgb DirectLight::irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3
     return E;
 }
 
-template Rgb DirectLight::irradiance(const SceneTracer&, const Vec3&, const Vec3&, int, Rng&) const;
-template Rgb DirectLight::irradiance(const SceneTracer&, const Vec3&, const Vec3&, int, PixelSampler&) const;
+template Rgb DirectLight::irradiance(const SceneTracer&, const Vec3&, const Vec3&, int, Rng&, int) const;
+template Rgb DirectLight::irradiance(const SceneTracer&, const Vec3&, const Vec3&, int, PixelSampler&, int) const;
 
 }  // namespace penumbra

@@ -24,6 +24,12 @@ public:
     // polygon, any other emitting object patch by patch. None when the emitters are not small.
     DirectLight(const Scene& scene, const PatchSet& patches);
 
+    // Proves, patch by patch, which sources no surface hides from any of the patch's points
+    // (solver/shafts.h): irradiance then casts no shadow rays to them from points of that patch.
+    // The image is the same, ray for ray where the rays would all have arrived. Returns the share
+    // of (patch, source) pairs proved clear among those facing each other.
+    double proveClearShafts(const SceneTracer& tracer);
+
     bool empty() const { return sources_.empty(); }
     size_t sources() const { return sources_.size(); }
     // Irradiance at x (unit normal n, x already off its surface) from the sources, W/m^2, with
@@ -34,8 +40,10 @@ public:
     // From an Rng, each ray's point jittered in its stratum; from a PixelSampler, one shift of the
     // whole grid (two dimensions), which the sampler stratifies over the pixel's samples and its
     // neighbours'.
+    // `patch`: the patch x lies on (-1: unknown), whose proved-clear sources take no shadow rays.
     template <typename Generator>
-    Rgb irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3& n, int rays, Generator& g) const;
+    Rgb irradiance(const SceneTracer& tracer, const Vec3& x, const Vec3& n, int rays, Generator& g,
+                   int patch = -1) const;
 
 private:
     struct Source {
@@ -44,9 +52,11 @@ private:
         Vec3 normal, centre;
         Rgb exitance;      // E = pi L_e, W/m^2
         double split = 1;  // share of the area in the triangle (0, 1, 2); the rest in (0, 2, 3)
+        int object = -1;   // a quad or triangle object taken whole; -1: one patch of an object
     };
     Vec3 pointOn(const Source& s, double u1, double u2) const;
     std::vector<Source> sources_;
+    std::vector<uint64_t> clear_;  // per patch: bit k set where source k is proved in full view
 };
 
 }  // namespace penumbra

@@ -7,6 +7,7 @@
 #include "core/counters.h"
 #include "core/log.h"
 #include "core/optics.h"
+#include "core/timer.h"
 #include "render/radiosity_view.h"
 #include "solver/radiosity/form_factors.h"
 
@@ -22,6 +23,12 @@ FinalGather::FinalGather(const SceneTracer& tracer, const std::vector<std::array
       caustics_(caustics),
       settings_(settings),
       direct_(tracer.scene(), tracer.patches()) {
+    if (settings.clearShafts && !direct_.empty()) {
+        const Timer timer;
+        const double share = direct_.proveClearShafts(tracer);
+        logDebug("final gather: ", 100 * share, "% of the patch-source pairs facing each other proved clear in ",
+                 timer.seconds(), " s");
+    }
     if (settings.solvedIndirect && indirect && indirect->size() == tracer.patches().size() && !direct_.empty())
         indirect_ = indirect;
 }
@@ -57,7 +64,7 @@ Rgb FinalGather::reflected(const SurfaceHit& x, Generator& rng, int level) const
         // The solve's indirect light where the camera looks, the direct light of the small sources
         // at the point itself, and the caustics: no gather rays.
         const Vec3 from = x.point + tracer_.epsilon() * x.normal;
-        Rgb E = direct_.irradiance(tracer_, from, x.normal, settings_.directSamples, rng);
+        Rgb E = direct_.irradiance(tracer_, from, x.normal, settings_.directSamples, rng, x.patch);
         if (caustics_) E += caustics_->irradiance(x.point, x.normal);
         E += interpolateAt(tracer_.patches(), size_t(x.patch), x.u, x.v, (*indirect_)[size_t(x.patch)]).max(0.0);
         return rho * kInvPi * E;

@@ -23,7 +23,10 @@
 namespace penumbra {
 
 struct GatherSettings {
-    int directSamples = 4;        // emitter samples per shading point and camera sample
+    int directSamples = 4;  // emitter samples per shading point and camera sample
+    // No shadow rays from a patch to a small source that no surface can hide from it (the shaft
+    // between them proved clear, solver/shafts.h): the same image with fewer rays.
+    bool clearShafts = true;
     int gatherRays = 16;          // gather rays per shading point and camera sample
     int maxSpecularDepth = 16;    // mirror and glass bounces before a path stops
     double minThroughput = 1e-3;  // specular branches carrying less are dropped
