@@ -41,7 +41,7 @@ std::pair<double, double> project(const Vec3* p, int count, const Vec3& axis) {
 }  // namespace
 
 ClearShafts::ClearShafts(const PatchSet& patches, const std::vector<RaySphere>& spheres,
-                         const std::vector<char>& replaced) {
+                         const std::vector<char>& replaced, double margin) {
     Vec3 low = Vec3::Constant(HUGE_VAL), high = Vec3::Constant(-HUGE_VAL);
     for (size_t i = 0; i < patches.size(); ++i) {
         if (i < replaced.size() && replaced[i]) continue;
@@ -66,6 +66,7 @@ ClearShafts::ClearShafts(const PatchSet& patches, const std::vector<RaySphere>& 
     // Embree traces the corners as floats (a relative error of 6e-8): closer than a ten-millionth of
     // the scene's size counts as touching.
     tolerance_ = pieces_.empty() ? 0 : 1e-7 * std::max((high - low).norm(), 1e-300);
+    margin_ = std::max(tolerance_, margin);
     if (pieces_.empty()) return;
     nodes_.reserve(2 * pieces_.size() / kLeafPieces + 2);
     nodes_.push_back({});
@@ -102,7 +103,7 @@ void ClearShafts::build(int node, int first, int count) {
 
 bool ClearShafts::separated(const Piece& p, const Vec3* hull, int count,
                             const std::vector<std::array<double, 4>>& faces) const {
-    const double tol = tolerance_;
+    const double tol = margin_;
     if (p.count == 0) {  // a sphere: outside one face of the shaft
         for (const auto& f : faces)
             if (Vec3(f[0], f[1], f[2]).dot(p.corner[0]) - f[3] > p.radius + tol) return true;
@@ -175,7 +176,7 @@ bool ClearShafts::clear(const ShaftEnd& a, const ShaftEnd& b) const {
             }
     Vec3 low = hull[0], high = hull[0];
     for (int k = 1; k < count; ++k) low = low.cwiseMin(hull[k]), high = high.cwiseMax(hull[k]);
-    low -= Vec3::Constant(tol), high += Vec3::Constant(tol);
+    low -= Vec3::Constant(margin_), high += Vec3::Constant(margin_);
     // Behind (or in) a flat end's plane, nothing meets a segment that leaves its front.
     auto behind = [&](const Piece& p, const ShaftEnd& e, const Vec3& c, double flat) {
         if (flat > tol) return false;

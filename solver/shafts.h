@@ -30,7 +30,10 @@ class ClearShafts {
 public:
     // The occluders as the ray scene's Exact view has them: every patch (the hull of its corners holds
     // the quad Embree traces) but those with replaced[i] set, and the exact spheres.
-    ClearShafts(const PatchSet& patches, const std::vector<RaySphere>& spheres, const std::vector<char>& replaced);
+    // `margin`: metres by which an occluder must clear the shaft (at least the scene's float
+    // precision): segments whose ends lie off the polygons by less than it are proved clear too.
+    ClearShafts(const PatchSet& patches, const std::vector<RaySphere>& spheres, const std::vector<char>& replaced,
+                double margin = 0);
 
     // Whether no occluder but the ends' own objects' patches meets any segment from a point of `a` to
     // a point of `b`. False (no proof) also when either end is not wholly in front of the other, or an
@@ -56,7 +59,8 @@ private:
 
     std::vector<Piece> pieces_;
     std::vector<Node> nodes_;
-    double tolerance_ = 0;  // metres: closer than this counts as touching
+    double tolerance_ = 0;  // metres: the scene's float precision (in a plane, behind it)
+    double margin_ = 0;     // metres: closer than this counts as touching
 };
 
 }  // namespace penumbra

@@ -46,6 +46,7 @@ struct RayScene::Impl {
     std::vector<unsigned> exactPatch;
     std::string error;
     size_t patchTotal = 0, sphereTotal = 0;
+    std::vector<RaySphere> spheres;
     std::vector<char> replaced;  // per patch: a facet of an exact sphere
     void check(const char* during) {
         if (!error.empty()) throw Error(cat(error, " (while ", during, ")"));
@@ -116,6 +117,7 @@ RayScene::RayScene(const PatchSet& patches, const std::vector<RaySphere>& sphere
         rtcAttachGeometryByID(impl_->exact, points, kSphereGeometry);
         rtcReleaseGeometry(points);
         impl_->sphereTotal = spheres.size();
+        impl_->spheres = spheres;
         rtcCommitScene(impl_->exact);
     }
     impl_->check("building the ray-tracing scene");
@@ -125,6 +127,7 @@ RayScene::RayScene(const PatchSet& patches, const std::vector<RaySphere>& sphere
 void* RayScene::embreeScene(RayView view) const { return impl_->sceneOf(view); }
 size_t RayScene::patchCount() const { return impl_->patchTotal; }
 size_t RayScene::sphereCount() const { return impl_->sphereTotal; }
+const std::vector<RaySphere>& RayScene::spheres() const { return impl_->spheres; }
 
 bool RayScene::onExactSphere(size_t patch) const {
     return patch < impl_->replaced.size() && impl_->replaced[patch] != 0;

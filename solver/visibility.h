@@ -57,6 +57,8 @@ public:
     size_t sphereCount() const;
     // Whether the patch is a facet of an exact sphere (seen by the Patches view only).
     bool onExactSphere(size_t patch) const;
+    // The exact spheres (the Exact view's), as given.
+    const std::vector<RaySphere>& spheres() const;
     // The view in which patches a and b see each other: the exact spheres as they are (a ball's
     // shadow on the floor is the sphere's, not its facets', which lie inside it), unless a or b is
     // one of their facets, which the sphere itself would hide.

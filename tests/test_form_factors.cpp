@@ -1089,3 +1089,25 @@ TEST(Shafts, NoSegmentMeetsAnOccluderOfAClearShaft) {
     EXPECT_GT(blocked, 60);
     std::printf("shaft proofs: %d of 300 scenes clear, %d with a segment blocked\n", proofs, blocked);
 }
+
+TEST(Shafts, ProvedColumnsChangeNoFormFactorAndSpareRays) {
+    // A lamp column proved in full view takes no visibility rays; the rays would all have arrived,
+    // so every entry, and the solution, stay the same bit for bit.
+    for (const char* name : {"cornell-box.json", "cornell-glass.json"}) {
+        const Scene scene = test::sceneFromJson(test::sceneFile(name));
+        SolveResult r[2];
+        uint64_t rays[2];
+        for (int proofs = 0; proofs < 2; ++proofs) {
+            SolveOptions o;
+            o.meshing.targetPatches = 800;
+            o.formFactors.method = "rays";
+            o.formFactors.clearShafts = proofs == 1;
+            r[proofs] = solveScene(scene, o);
+            rays[proofs] = r[proofs].counters.at("form_factors.visibility_rays");
+        }
+        ASSERT_EQ(r[0].solution.B.size(), r[1].solution.B.size());
+        for (size_t i = 0; i < r[0].solution.B.size(); ++i)
+            ASSERT_TRUE((r[0].solution.B[i] == r[1].solution.B[i]).all()) << name << ": patch " << i;
+        EXPECT_LT(double(rays[1]), 0.9 * double(rays[0])) << name << ": " << rays[1] << " against " << rays[0];
+    }
+}

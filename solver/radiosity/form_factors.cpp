@@ -33,23 +33,6 @@ Vec3 stratifiedPoint(const PatchSet& p, size_t i, int k, int side, Rng& rng) {
     return p.pointAt(i, inset(u), inset(v));
 }
 
-// How far segment endpoints are lifted off their patches, towards the face that takes part: enough
-// that a segment arriving at a grazing angle is not stopped by its own endpoint patch in float
-// precision, far below any real gap between surfaces.
-// A quad that is not flat (a patch of the Cornell box's non-planar walls) is traced as two
-// triangles while its points lie on the bilinear surface, up to its warp away from them: the lift
-// clears that too, or the patch's own triangles hide half its points.
-double liftDistance(const PatchSet& p, size_t i) {
-    double warp = 0;
-    if (!p.isTriangle(i)) {
-        const auto& c = p.corners[i];
-        const Vec3 n = (c[1] - c[0]).cross(c[3] - c[0]);
-        const double len = n.norm();
-        if (len > 0) warp = std::abs(n.dot(c[2] - c[0])) / len;
-    }
-    return 1e-4 * p.boundingRadius(i) + 1e-6 * p.centroid[i].cwiseAbs().maxCoeff() + warp;
-}
-
 // The part of patch b on the `side` of patch a's plane, as a convex polygon (up to 8 corners)
 // pulled 1e-3 of the way towards its centroid, like the inset of `stratifiedPoint`.
 struct ClippedPolygon {
@@ -92,6 +75,20 @@ Vec3 uniformPoint(const ClippedPolygon& c, Rng& rng) {
 }
 
 }  // namespace
+
+// A quad that is not flat (a patch of the Cornell box's non-planar walls) is traced as two
+// triangles while its points lie on the bilinear surface, up to its warp away from them: the lift
+// clears that too, or the patch's own triangles hide half its points.
+double liftDistance(const PatchSet& p, size_t i) {
+    double warp = 0;
+    if (!p.isTriangle(i)) {
+        const auto& c = p.corners[i];
+        const Vec3 n = (c[1] - c[0]).cross(c[3] - c[0]);
+        const double len = n.norm();
+        if (len > 0) warp = std::abs(n.dot(c[2] - c[0])) / len;
+    }
+    return 1e-4 * p.boundingRadius(i) + 1e-6 * p.centroid[i].cwiseAbs().maxCoeff() + warp;
+}
 
 PlaneSides planeSides(const PatchSet& p, size_t a, size_t b) {
     const double eps = 1e-9 * (p.boundingRadius(a) + p.boundingRadius(b));
@@ -392,7 +389,8 @@ bool hidesWholly(const ConvexOccluder& o, const PatchSet& patches, size_t i, siz
 }
 
 double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, size_t j,
-                       const FormFactorSettings& settings, Blockers* blockers, double* variance, Stream stream) {
+                       const FormFactorSettings& settings, Blockers* blockers, double* variance, Stream stream,
+                       bool clear) {
     if (variance) *variance = 0;
     if (i == j) return 0;
     const size_t a = std::min(i, j), b = std::max(i, j);
@@ -404,9 +402,14 @@ double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, 
     const double reach = std::sqrt(std::max(patches.area[a], patches.area[b])) /
                          std::max((patches.centroid[a] - patches.centroid[b]).norm(), 1e-12);
     const int grid = std::clamp(int(std::ceil(4 * reach)), 1, 4);
-    const Visibility vis = visibleFraction(patches, rays, a, b, 1, 1, bSeenByA.straddles() || aSeenByB.straddles(),
-                                           settings.visibilityRays * grid * grid, settings.seed, stream, blockers);
-    g_visibilityRays.add(uint64_t(vis.rays));
+    Visibility vis{0, 0, 0};
+    if (clear) {
+        vis.fraction = 1;
+    } else {
+        vis = visibleFraction(patches, rays, a, b, 1, 1, bSeenByA.straddles() || aSeenByB.straddles(),
+                              settings.visibilityRays * grid * grid, settings.seed, stream, blockers);
+        g_visibilityRays.add(uint64_t(vis.rays));
+    }
     if (vis.fraction == 0) return 0;
     uint64_t evaluations = 0;
     const bool aSmaller = patches.area[a] <= patches.area[b];

@@ -27,6 +27,9 @@ struct FormFactorSettings {
     // --form-factors rays: the patches of an object whose mean's estimated relative standard error is
     // above this cast again with more rays (solve.cpp, raysForObjectNoise); 1: never.
     double objectNoise = 0.005;
+    // The small sources' columns take no visibility rays from receivers proved in full view of
+    // them (solver/shafts.h).
+    bool clearShafts = true;
     uint64_t seed = 1;
 };
 
@@ -207,9 +210,15 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& ray
 // given, receives the estimate's variance from the spread of its measuring rays (0 where they agree:
 // its expectation over the rays is the variance's, whatever the truth). `stream` sets the rays: a
 // second estimate of the same pair needs a stream of its own.
+// `clear`: the pair's shaft is proved free of occluders (solver/shafts.h): no visibility rays.
 double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, size_t j,
                        const FormFactorSettings& settings, Blockers* blockers = nullptr, double* variance = nullptr,
-                       Stream stream = Stream::Visibility);
+                       Stream stream = Stream::Visibility, bool clear = false);
+
+// How far segment endpoints are lifted off patch i, towards the face that takes part: enough that a
+// segment arriving at a grazing angle is not stopped by its own endpoint patch in float precision,
+// far below any real gap between surfaces.
+double liftDistance(const PatchSet& p, size_t i);
 
 // What `auto` form factors run on these patches, and why: the analytic cubature while the patch pairs
 // that face each other are few enough for it to take well under a second (at most

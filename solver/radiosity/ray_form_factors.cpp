@@ -15,6 +15,7 @@
 #include "core/progress.h"
 #include "core/timer.h"
 #include "mesh/refine.h"
+#include "solver/shafts.h"
 #include "solver/tracer.h"
 
 namespace penumbra {
@@ -247,6 +248,54 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
         columnCount ? convexOccluders(patches) : std::vector<ConvexOccluder>();
     std::vector<FormFactorMatrix::EntryVariance> entryVariance;
     std::atomic<uint64_t> pairsHidden{0};  // source-receiver pairs an occluder hid without rays
+    // Per object of the analytic columns (a lamp), the rectangle in its plane that holds its column
+    // patches: where the shaft from a receiver to it is proved clear (solver/shafts.h; occluders the
+    // patches and the exact spheres, both views), its columns take no visibility rays.
+    struct SourceEnd {
+        ShaftEnd end;
+        std::vector<size_t> columns;  // indices into `analytic`
+    };
+    std::vector<SourceEnd> sourceEnds;
+    std::unique_ptr<ClearShafts> shafts;
+    if (columnCount > 0 && settings.clearShafts) {
+        std::map<int, std::vector<size_t>> byObject;
+        for (size_t a = 0; a < columnCount; ++a) byObject[patches.object[analytic[a]]].push_back(a);
+        for (const auto& [object, columns] : byObject) {
+            const size_t first = analytic[columns.front()];
+            const Vec3 up = patches.normal[first], c = patches.centroid[first];
+            Vec3 u, v;
+            orthonormalBasis(up, u, v);
+            double uLow = HUGE_VAL, uHigh = -HUGE_VAL, vLow = HUGE_VAL, vHigh = -HUGE_VAL;
+            bool flat = true;
+            for (size_t a : columns) {
+                const size_t j = analytic[a];
+                flat = flat && patches.normal[j].dot(up) > 1 - 1e-9;
+                for (int k = 0; k < patches.cornerCount[j]; ++k) {
+                    const Vec3 d = patches.corners[j][size_t(k)] - c;
+                    flat = flat && std::abs(d.dot(up)) <= 1e-9 * (1 + d.norm());
+                    uLow = std::min(uLow, d.dot(u)), uHigh = std::max(uHigh, d.dot(u));
+                    vLow = std::min(vLow, d.dot(v)), vHigh = std::max(vHigh, d.dot(v));
+                }
+            }
+            if (!flat) continue;  // no proof for a curved or folded source: rays
+            SourceEnd e;
+            e.end.corner = {c + uLow * u + vLow * v, c + uHigh * u + vLow * v, c + uHigh * u + vHigh * v,
+                            c + uLow * u + vHigh * v};
+            e.end.normal = up;
+            e.columns = columns;
+            sourceEnds.push_back(std::move(e));
+        }
+        // The visibility rays' ends lie off the patches by their lift: an occluder must clear the
+        // shaft by more.
+        double farthest = 0;
+        for (size_t i = 0; i < n; ++i) farthest = std::max(farthest, liftDistance(patches, i));
+        if (!sourceEnds.empty())
+            shafts = std::make_unique<ClearShafts>(patches, rays.spheres(), std::vector<char>(), 2 * farthest);
+    }
+    std::vector<int> endOf(columnCount, -1);
+    for (size_t e = 0; e < sourceEnds.size(); ++e)
+        for (size_t a : sourceEnds[e].columns) endOf[a] = int(e);
+    std::atomic<uint64_t> pairsProved{0};  // source-receiver pairs proved clear without rays
     const std::vector<Vec3>&tangentU = read.tangentU, &tangentV = read.tangentV;
     const double lift = originLift(patches);
     const int baseSide = stratumSide(settings.raysPerPatch);
@@ -291,7 +340,8 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             // Per analytic column, the last object that hid a receiver wholly from it (the wall between
             // the rooms: a receiver beside the last one is likely behind it too), -1 if none.
             std::vector<int> wall(analytic.size(), -1);
-            uint64_t myHidden = 0;
+            uint64_t myHidden = 0, myProved = 0;
+            std::vector<char> proved(sourceEnds.size());
             std::vector<FormFactorMatrix::EntryVariance> myVariance, rowVariance;
             // The near hits among the origins that `counts`, each of weight w.
             auto collectNear = [&](char reach, const auto& counts, double w, std::vector<HitReadings::Near>& out) {
@@ -446,14 +496,25 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 double exact = 0;
                 rowVariance.clear();
                 const Timer columns;
+                if (shafts) {
+                    ShaftEnd receiver;
+                    receiver.count = patches.cornerCount[i];
+                    receiver.corner = patches.corners[i];
+                    receiver.normal = patches.normal[i];
+                    for (size_t e = 0; e < sourceEnds.size(); ++e)
+                        proved[e] = shafts->clear(receiver, sourceEnds[e].end);
+                }
                 for (size_t a = 0; a < columnCount; ++a) {
                     const size_t j = analytic[a];
                     double whole, variance = 0;
-                    if (wall[a] >= 0 && hidesWholly(occluders[size_t(wall[a])], patches, i, j)) {
+                    const bool clear = endOf[a] >= 0 && proved[size_t(endOf[a])];
+                    if (!clear && wall[a] >= 0 && hidesWholly(occluders[size_t(wall[a])], patches, i, j)) {
                         whole = 0;
                         ++myHidden;
                     } else {
-                        whole = frontFormFactor(patches, rays, i, j, visibility, &blockers[a], &variance, stream);
+                        myProved += clear;
+                        whole =
+                            frontFormFactor(patches, rays, i, j, visibility, &blockers[a], &variance, stream, clear);
                         const Blockers& by = blockers[a];
                         const int last = by.patch[(size_t(by.next) + by.patch.size() - 1) % by.patch.size()];
                         if (whole == 0 && last >= 0) {
@@ -546,6 +607,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 g_castRays.add(uint64_t(count + followed));
             }
             pairsHidden += myHidden;
+            pairsProved += myProved;
             std::lock_guard<std::mutex> lock(backMutex);
             back.insert(back.end(), myBack.begin(), myBack.end());
             entryVariance.insert(entryVariance.end(), myVariance.begin(), myVariance.end());
@@ -580,6 +642,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             double(analyticNanos) * 1e-9 / threadCount(), " s of it",
             pairsHidden ? cat(" (", uint64_t(pairsHidden), " source-receiver pairs hidden wholly by one convex object)")
                         : "",
+            pairsProved ? cat(" (", uint64_t(pairsProved), " in full view of it, proved without rays)") : "",
             F.entryVariance.empty() ? "" : cat("; ", F.entryVariance.size(), " of their entries in a penumbra"));
     return F;
 }
