@@ -985,24 +985,9 @@ TEST(RayFormFactors, ARowCastAgainMeasuresItsLampAgainWithMoreRays) {
 }
 
 // Shaft proofs (solver/shafts.h): where the shaft between two polygons is declared clear, no segment
-// between them may meet an occluder (checked by a brute-force segment test on random segments),
+// between them may meet an occluder (checked segment by segment against every patch and sphere),
 // and proofs are made where the occluders stand aside.
 namespace {
-
-// Whether the segment p -> q crosses triangle (a, b, c) (Moller and Trumbore).
-bool segmentHitsTriangle(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b, const Vec3& c) {
-    const Vec3 d = q - p, e1 = b - a, e2 = c - a, h = d.cross(e2);
-    const double det = e1.dot(h);
-    if (std::abs(det) < 1e-300) return false;
-    const Vec3 s = p - a;
-    const double u = s.dot(h) / det;
-    if (u < 0 || u > 1) return false;
-    const Vec3 qv = s.cross(e1);
-    const double v = d.dot(qv) / det;
-    if (v < 0 || u + v > 1) return false;
-    const double t = e2.dot(qv) / det;
-    return t > 0 && t < 1;
-}
 
 bool segmentHitsSphere(const Vec3& p, const Vec3& q, const RaySphere& s) {
     const Vec3 d = q - p;
@@ -1073,11 +1058,7 @@ TEST(Shafts, NoSegmentMeetsAnOccluderOfAClearShaft) {
                            rng.uniform() * (low.corner[3] - low.corner[0]);
             const Vec3 q = high.corner[0] + rng.uniform() * (high.corner[1] - high.corner[0]) +
                            rng.uniform() * (high.corner[3] - high.corner[0]);
-            for (size_t i = 0; i < patches.size() && !hit; ++i) {
-                const auto& c = patches.corners[i];
-                hit = segmentHitsTriangle(p, q, c[0], c[1], c[2]) ||
-                      (patches.cornerCount[i] == 4 && segmentHitsTriangle(p, q, c[0], c[2], c[3]));
-            }
+            for (size_t i = 0; i < patches.size() && !hit; ++i) hit = segmentCrossesPatch(patches, i, p, q, 0);
             for (const RaySphere& sphere : spheres) hit = hit || segmentHitsSphere(p, q, sphere);
         }
         EXPECT_FALSE(clear && hit) << "scene " << scene << ": declared clear, but a segment meets an occluder";

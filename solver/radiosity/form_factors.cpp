@@ -76,6 +76,26 @@ Vec3 uniformPoint(const ClippedPolygon& c, Rng& rng) {
 
 }  // namespace
 
+bool segmentCrossesPatch(const PatchSet& p, size_t k, const Vec3& from, const Vec3& to, double trim) {
+    const Vec3 d = to - from;
+    auto crosses = [&](const Vec3& a, const Vec3& b, const Vec3& c) {
+        const Vec3 e1 = b - a, e2 = c - a, pv = d.cross(e2);
+        const double det = e1.dot(pv);
+        if (!(std::abs(det) > 0)) return false;
+        const Vec3 tv = from - a;
+        const double u = tv.dot(pv) / det;
+        if (u < 0 || u > 1) return false;
+        const Vec3 qv = tv.cross(e1);
+        const double v = d.dot(qv) / det;
+        if (v < 0 || u + v > 1) return false;
+        const double t = e2.dot(qv) / det;
+        return t > trim && t < 1 - trim;
+    };
+    const auto& c = p.corners[k];
+    if (p.cornerCount[k] == 3) return crosses(c[0], c[1], c[2]);
+    return crosses(c[0], c[1], c[3]) || crosses(c[2], c[3], c[1]);
+}
+
 // A quad that is not flat (a patch of the Cornell box's non-planar walls) is traced as two
 // triangles while its points lie on the bilinear surface, up to its warp away from them: the lift
 // clears that too, or the patch's own triangles hide half its points.
@@ -101,31 +121,7 @@ PlaneSides planeSides(const PatchSet& p, size_t a, size_t b) {
     return sides;
 }
 
-namespace {
-
-// Whether the segment from + t (to - from), t in (trim, 1 - trim), crosses patch k's triangles as the
-// ray scene has them (a quad's 0 1 3 and 2 3 1; Moller and Trumbore).
-bool segmentCrossesPatch(const PatchSet& p, size_t k, const Vec3& from, const Vec3& to, double trim) {
-    const Vec3 d = to - from;
-    auto crosses = [&](const Vec3& a, const Vec3& b, const Vec3& c) {
-        const Vec3 e1 = b - a, e2 = c - a, pv = d.cross(e2);
-        const double det = e1.dot(pv);
-        if (!(std::abs(det) > 0)) return false;
-        const Vec3 tv = from - a;
-        const double u = tv.dot(pv) / det;
-        if (u < 0 || u > 1) return false;
-        const Vec3 qv = tv.cross(e1);
-        const double v = d.dot(qv) / det;
-        if (v < 0 || u + v > 1) return false;
-        const double t = e2.dot(qv) / det;
-        return t > trim && t < 1 - trim;
-    };
-    const auto& c = p.corners[k];
-    if (p.cornerCount[k] == 3) return crosses(c[0], c[1], c[2]);
-    return crosses(c[0], c[1], c[3]) || crosses(c[2], c[3], c[1]);
-}
-
-}  // namespace
+namespace {}  // namespace
 
 // Measuring segments per deciding one where those disagree. The penumbrae are where a pair's
 // visibility is noisy, and that noise is not in the ray-cast matrix's stated noise (its analytic

@@ -220,6 +220,10 @@ double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, 
 // far below any real gap between surfaces.
 double liftDistance(const PatchSet& p, size_t i);
 
+// Whether the segment from + t (to - from), t in (trim, 1 - trim), crosses patch k's triangles as the
+// ray scene has them (a quad's 0 1 3 and 2 3 1; Moller and Trumbore).
+bool segmentCrossesPatch(const PatchSet& p, size_t k, const Vec3& from, const Vec3& to, double trim);
+
 // What `auto` form factors run on these patches, and why: the analytic cubature while the patch pairs
 // that face each other are few enough for it to take well under a second (at most
 // kAnalyticFacingPairs: the closed forms' scenes, small meshes), ray casting past that, whose cost
