@@ -289,7 +289,7 @@ TEST(Cli, ASolveForFewSamplesIsNoQuieterThanTheImage) {
     // (formFactorNoiseFor: 2% at 1 spp), unless --ff-noise is given or the image is no final gather.
     const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
     const std::string out = test::tempDir() + "/few";
-    const std::string common = cat(" --patches 200 --resolution 16x16 -v --out ", out, ".exr");
+    const std::string common = cat(" --patches 100 --form-factors rays --resolution 16x16 -v --out ", out, ".exr");
     // The log line naming the target the render chose, or "" where it kept the solve's own.
     auto chosen = [&](const std::string& options) {
         const CommandResult r = run(cat("render ", scene, common, options));
