@@ -60,7 +60,8 @@ double DirectLight::proveClearShafts(const SceneTracer& tracer) {
     const Scene& scene = tracer.scene();
     const PatchSet& patches = tracer.patches();
     clear_.clear();
-    if (sources_.empty() || sources_.size() > 64) return 0;
+    static_assert(kMostPolygons <= 64, "a source's proof is one bit of a 64-bit mask per patch");
+    if (sources_.empty() || sources_.size() > kMostPolygons) return 0;
     std::vector<RaySphere> spheres;
     std::vector<char> replaced(patches.size(), 0);
     for (size_t o = 0; o < scene.objects.size(); ++o)
@@ -78,11 +79,7 @@ double DirectLight::proveClearShafts(const SceneTracer& tracer) {
                 if (replaced[i]) continue;
                 const SceneObject& object = scene.objects[size_t(patches.object[i])];
                 // The segments start where the shadow rays do: off the surface by the tracer's epsilon.
-                ShaftEnd a;
-                a.count = patches.cornerCount[i];
-                for (int k = 0; k < a.count; ++k)
-                    a.corner[size_t(k)] = patches.corners[i][size_t(k)] + tracer.epsilon() * patches.normal[i];
-                a.normal = patches.normal[i];
+                ShaftEnd a = patchEnd(patches, i, tracer.epsilon());
                 const bool flat = object.type == ShapeType::Quad || object.type == ShapeType::Triangle;
                 a.object = flat ? patches.object[i] : -1;
                 for (size_t k = 0; k < sources_.size(); ++k) {

@@ -40,6 +40,14 @@ std::pair<double, double> project(const Vec3* p, int count, const Vec3& axis) {
 
 }  // namespace
 
+ShaftEnd patchEnd(const PatchSet& patches, size_t i, double lift) {
+    ShaftEnd e;
+    e.count = patches.cornerCount[i];
+    for (int k = 0; k < e.count; ++k) e.corner[size_t(k)] = patches.corners[i][size_t(k)] + lift * patches.normal[i];
+    e.normal = patches.normal[i];
+    return e;
+}
+
 ClearShafts::ClearShafts(const PatchSet& patches, const std::vector<RaySphere>& spheres,
                          const std::vector<char>& replaced, double margin) {
     Vec3 low = Vec3::Constant(HUGE_VAL), high = Vec3::Constant(-HUGE_VAL);

@@ -26,6 +26,10 @@ struct ShaftEnd {
     int object = -1;
 };
 
+// Patch i as a shaft end, its corners lifted `lift` metres along its normal (where rays start off it);
+// every patch may occlude it.
+ShaftEnd patchEnd(const PatchSet& patches, size_t i, double lift = 0);
+
 class ClearShafts {
 public:
     // The occluders as the ray scene's Exact view has them: every patch (the hull of its corners holds

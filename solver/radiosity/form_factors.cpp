@@ -121,8 +121,6 @@ PlaneSides planeSides(const PatchSet& p, size_t a, size_t b) {
     return sides;
 }
 
-namespace {}  // namespace
-
 // Measuring segments per deciding one where those disagree. The penumbrae are where a pair's
 // visibility is noisy, and that noise is not in the ray-cast matrix's stated noise (its analytic
 // lamp columns count as exact): the Cornell box's face beside the short block, lit by the floor

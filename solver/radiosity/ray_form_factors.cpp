@@ -287,10 +287,11 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
         }
         // The visibility rays' ends lie off the patches by their lift: an occluder must clear the
         // shaft by more.
-        double farthest = 0;
-        for (size_t i = 0; i < n; ++i) farthest = std::max(farthest, liftDistance(patches, i));
-        if (!sourceEnds.empty())
+        if (!sourceEnds.empty()) {
+            double farthest = 0;
+            for (size_t i = 0; i < n; ++i) farthest = std::max(farthest, liftDistance(patches, i));
             shafts = std::make_unique<ClearShafts>(patches, rays.spheres(), std::vector<char>(), 2 * farthest);
+        }
     }
     std::vector<int> endOf(columnCount, -1);
     for (size_t e = 0; e < sourceEnds.size(); ++e)
@@ -497,10 +498,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 rowVariance.clear();
                 const Timer columns;
                 if (shafts) {
-                    ShaftEnd receiver;
-                    receiver.count = patches.cornerCount[i];
-                    receiver.corner = patches.corners[i];
-                    receiver.normal = patches.normal[i];
+                    const ShaftEnd receiver = patchEnd(patches, i);
                     for (size_t e = 0; e < sourceEnds.size(); ++e)
                         proved[e] = shafts->clear(receiver, sourceEnds[e].end);
                 }
