@@ -693,3 +693,32 @@ TEST(SpecularTransport, AFloorUnderABallIsNoGap) {
     ASSERT_GT(floorPatches, 100);
     EXPECT_EQ(selfSeen, 0) << "floor patches that see themselves";
 }
+
+// cornell-glass's balls float 0.5 mm over the floor; meshed coarsely, their facets (flat chords of
+// the spheres, 25 mm wide) reach through it and cover most of the floor patches beneath, which the
+// exact spheres, the paths' geometry, do not. What such a patch sends on through a ball is a share of
+// the light of its uncovered part, so at most all of it: converted to irradiance by the whole areas
+// instead, and at the paths' share over a sliver of it (28 x), a patch under the glass ball sent on
+// a hundred times the light it had and Gauss-Seidel diverged to NaN (a 671-patch mesh of the
+// session-24 contact-grading probe). Light is conserved patch by patch: sum_j A_j weight(i -> j) is
+// at most A_i, the areas those of the uncovered parts, B their means.
+TEST(SpecularTransport, APatchMostlyUnderABallsFacetsSendsOnNoMoreThanItsLight) {
+    SolveOptions o;
+    o.meshing.targetPatches = 300;
+    o.formFactors.method = "rays";
+    const SolveResult r = solveScene(test::sceneFromJson(test::sceneFile("cornell-glass.json")), o);
+    const RadiositySystem& s = r.system;
+    int covered = 0;
+    double worst = 0;
+    for (size_t i = 0; i < r.patches.size(); ++i) {
+        if (s.specular[i] || s.area[i] <= 0) continue;
+        covered += r.F.exposed[i] < 0.5;
+        double sent = 0;
+        for (size_t k = s.transport.outStart[i]; k < s.transport.outStart[i + 1]; ++k)
+            sent += s.area[size_t(s.transport.outTarget[k])] * s.transport.outWeight[k].maxCoeff();
+        worst = std::max(worst, sent / s.area[i]);
+    }
+    EXPECT_GT(covered, 0) << "no floor patch beneath a ball's facets: the test lost its case";
+    EXPECT_LE(worst, 1.0 + 1e-6) << "a patch sends on through mirrors and glass more light than it has";
+    EXPECT_TRUE(r.solution.converged);
+}

@@ -752,7 +752,10 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                             const double a = patches.area[i] * (F.exposed.empty() ? 1.0 : double(F.exposed[i]));
                             const double own = std::max(rowRays[i], 1.0);
                             const double theirs = a * e.weight / e.square;
-                            f = (own * f + theirs * e.weight / a) / (own + theirs);
+                            // At most all of the row's light: a patch under a ball that its
+                            // facets cover but the exact sphere does not has a sliver of exposed
+                            // area (1 ray in 144) and the paths' full share over it (28 x).
+                            f = std::min((own * f + theirs * e.weight / a) / (own + theirs), 1.0);
                         }
                         shared[g] = f;
                         scale[g] = f / e.weight;
@@ -822,6 +825,15 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
         64);
 
     const double rowSeconds = timer.seconds();
+    // The part of patch i that light leaves and lands on: its area less any part covered by a solid
+    // resting on it (ray-cast rows: FormFactorMatrix::exposed). B is the mean over that part, so a share
+    // of i's light lands on j as irradiance in the ratio of those parts, not of the whole areas: by the
+    // whole areas, a floor patch almost wholly under cornell-glass's glass ball (1% exposed) sent on
+    // through the ball a hundred times the light it had, and Gauss-Seidel diverged. (The floor keeps
+    // a fully covered patch, which no path can reach, from dividing by zero.)
+    auto litPart = [&](size_t i, double exposed) { return patches.area[i] * std::max(exposed, 1e-6); };
+    auto lit = [&](size_t i) { return litPart(i, F.exposed.empty() ? 1.0 : double(F.exposed[i])); };
+    auto previousLit = [&](size_t i) { return litPart(i, previous->rowInputs[i * inputs + K + 1]); };
     // Compressed rows by source (outgoing, losses), then by target (incoming).
     out.outStart.assign(n + 1, 0);
     out.lossStart.assign(n + 1, 0);
@@ -862,8 +874,14 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                     const auto from = ptrdiff_t(p.outStart[i]), to = ptrdiff_t(p.outStart[i + 1]);
                     const auto at = ptrdiff_t(out.outStart[i]);
                     std::copy(p.outTarget.begin() + from, p.outTarget.begin() + to, out.outTarget.begin() + at);
-                    std::copy(p.outWeight.begin() + from, p.outWeight.begin() + to, out.outWeight.begin() + at);
-                    std::copy(p.outSquare.begin() + from, p.outSquare.begin() + to, out.outSquare.begin() + at);
+                    // The same shares; a target whose uncovered part was measured again since takes
+                    // them over its new part.
+                    for (auto k = from; k < to; ++k) {
+                        const size_t j = size_t(p.outTarget[size_t(k)]);
+                        const double ratio = previousLit(j) / lit(j);
+                        out.outWeight[size_t(at + k - from)] = ratio * p.outWeight[size_t(k)];
+                        out.outSquare[size_t(at + k - from)] = ratio * ratio * p.outSquare[size_t(k)];
+                    }
                     const auto lossFrom = ptrdiff_t(p.lossStart[i]), lossTo = ptrdiff_t(p.lossStart[i + 1]);
                     const auto lossAt = ptrdiff_t(out.lossStart[i]);
                     std::copy(p.lossObject.begin() + lossFrom, p.lossObject.begin() + lossTo,
@@ -874,7 +892,7 @@ SpecularTransport computeSpecularTransport(const Scene& scene, const PatchSet& p
                 }
                 size_t k = out.outStart[i];
                 for (const Transfer& t : rows[i].delivered) {
-                    const double ratio = patches.area[i] / patches.area[size_t(t.target)];
+                    const double ratio = lit(i) / lit(size_t(t.target));
                     out.outTarget[k] = t.target;
                     out.outWeight[k] = ratio * t.share;
                     out.outSquare[k++] = ratio * ratio * t.square;
