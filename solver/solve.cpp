@@ -96,7 +96,10 @@ void solveBuiltMatrix(const SolveOptions& options, const StepObserver& observer,
             solveTimer.seconds(), " s");
     r.power = powerBalance(r.system, r.F, r.solution.B);
     Timer vertexTimer;
-    if (options.vertexRadiosity == "gather")
+    const std::vector<char> small = options.forSolvedIndirectGather ? smallSources(r.system) : std::vector<char>{};
+    if (std::find(small.begin(), small.end(), 1) != small.end())
+        r.corners = interpolateCorners(r.patches, r.solution.display);
+    else if (options.vertexRadiosity == "gather")
         r.corners = gatherCorners(r.patches, r.system, r.F, r.solution.display, *r.rays);
     else if (options.vertexRadiosity == "direct")
         r.corners = directCorners(r.patches, r.system, r.F, r.solution.display, *r.rays);

@@ -37,6 +37,12 @@ struct SolveOptions {
     // Displayed corner radiosity (vertex_radiosity.h): gather (the equation at each vertex), direct (the
     // mean around it with the small sources' direct light at the vertex) or average (the mean around it).
     std::string vertexRadiosity = "direct";
+    // The solution is for a final gather that reads its indirect light from it (GatherSettings::
+    // solvedIndirect). Where the scene has small sources, that gather shades every point it sees from
+    // the solve's indirect corners and the small sources' direct light, and reads no displayed corner
+    // (FinalGather::reflected): the solve then makes the cheapest ones, "average", whatever
+    // vertexRadiosity says. `render` without --solution (and without --vertex-radiosity) sets it.
+    bool forSolvedIndirectGather = false;
     double maxMemoryBytes = 0;  // 0: what the machine has available
     // Rays per patch where the per-object floor sets the default mesh (a scene of many objects, the
     // building's desks, shelves and books): its large surfaces keep the target size, finer and with

@@ -487,3 +487,40 @@ TEST(FinalGather, ProvedClearShaftsChangeNoPixelAndSpareRays) {
             << name << ": " << rays[1] << " shadow rays against " << rays[0];
     }
 }
+
+TEST(FinalGather, ReadsNoDisplayedCornerWhereItReadsTheSolvedIndirectLight) {
+    // With small sources, the default final gather shades what it sees from the solve's indirect
+    // corners and the sources' direct light: the displayed corners (vertex shadow rays, what views
+    // and export show) may be the cheapest, the image the same bit for bit. A gather that read them
+    // (a gather ray's landing, a point without the solved indirect light) would change pixels:
+    // "direct" corners hold the lamp's penumbrae at the vertices, "average" ones blur them.
+    // The balls of cornell-glass send the camera's rays on to the room behind them.
+    for (const char* name : {"cornell-box.json", "cornell-glass.json"}) {
+        const Scene scene = test::sceneFromJson(test::sceneFile(name));
+        SolveOptions options;
+        options.meshing.targetPatches = 600;
+        options.formFactors.method = "rays";
+        const SolveResult r = solveScene(scene, options);
+        options.forSolvedIndirectGather = true;
+        const SolveResult cheap = solveScene(scene, options);
+        const CornerValues average = interpolateCorners(r.patches, r.solution.display);
+        ASSERT_EQ(cheap.corners.size(), average.size()) << name;
+        size_t cornersDiffer = 0, differ = 0;
+        for (size_t i = 0; i < average.size(); ++i)
+            for (size_t k = 0; k < 4; ++k) {
+                EXPECT_EQ((cheap.corners[i][k] - average[i][k]).abs().maxCoeff(), 0.0) << name << " patch " << i;
+                cornersDiffer += (r.corners[i][k] - average[i][k]).abs().maxCoeff() > 1e-6 * average[i][k].maxCoeff();
+            }
+        ASSERT_GT(cornersDiffer, 100u) << name << ": the direct corners are no different from the averaged ones";
+        Camera camera = scene.camera;
+        camera.width = camera.height = 48;
+        Image images[2];
+        for (int k = 0; k < 2; ++k) {
+            const SolvedScene solved(scene, r.patches, k == 0 ? r.corners : average, GatherSettings{}, {}, 1, r.rays,
+                                     &r.solution.display, r.indirect);
+            images[k] = solved.render(camera, 4, 1);
+        }
+        for (size_t k = 0; k < images[0].rgb.size(); ++k) differ += images[0].rgb[k] != images[1].rgb[k];
+        EXPECT_EQ(differ, 0u) << name;
+    }
+}
