@@ -247,10 +247,10 @@ private:
     LogLevel userLevel_;
     std::vector<Setting> plan_;
     // The solves made so far, by what makes one: every setting of the solve, with this tolerance.
-    using SolveKey = std::tuple<int, int, double, int, int, double, double, int, std::string, double>;
+    using SolveKey = std::tuple<int, int, double, int, int, double, double, int, std::string, double, bool>;
     static SolveKey keyOf(const Setting& s, double tolerance) {
-        return {s.patches, s.visibilityRays, s.ffTolerance,  s.ffRays, s.specularRays,
-                tolerance, s.refine,         s.refineBudget, s.solver, s.ffNoise()};
+        return {s.patches, s.visibilityRays, s.ffTolerance, s.ffRays,    s.specularRays,      tolerance,
+                s.refine,  s.refineBudget,   s.solver,      s.ffNoise(), s.displayedCorners()};
     }
     std::map<SolveKey, std::unique_ptr<SolveRecord>> solves_;
     PatchSet pathPatches_;
@@ -377,7 +377,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
         if (p.method != "path" && p.patches == s.patches && p.visibilityRays == s.visibilityRays &&
             p.ffTolerance == s.ffTolerance && p.ffRays == s.ffRays && p.specularRays == s.specularRays &&
             p.refine == s.refine && p.refineBudget == s.refineBudget && p.solver == s.solver &&
-            p.ffNoise() == s.ffNoise() && s.solver != "hierarchical" &&
+            p.ffNoise() == s.ffNoise() && p.displayedCorners() == s.displayedCorners() && s.solver != "hierarchical" &&
             std::find(tolerances.begin(), tolerances.end(), p.tolerance) == tolerances.end())
             tolerances.push_back(p.tolerance);
     SolveOptions o;
@@ -388,6 +388,7 @@ const SolveRecord& Bench::solveFor(const Setting& s) {
     if (s.ffRays > 0) o.formFactors.raysPerPatch = s.ffRays, o.manyObjectsRays = 0;
     o.formFactors.seed = options_.seed;
     o.formFactors.objectNoise = s.ffNoise();
+    o.forSolvedIndirectGather = !s.displayedCorners();
     o.specular.pathsPerPatch = s.specularRays;
     o.solverSettings.tolerance = tolerances.front();
     o.solver = s.solver;

@@ -44,6 +44,9 @@ struct Setting {
     // The form factors' noise target (--ff-noise) as `render` sets it: for final-gathered images of
     // `spp`, formFactorNoiseFor(spp); else the solve's default.
     double ffNoise() const;
+    // Whether the solve makes the displayed corners the view shows, as `render` has it: a final gather
+    // reads none of them where the scene has small sources (SolveOptions::forSolvedIndirectGather).
+    bool displayedCorners() const { return method != "final-gather"; }
 };
 
 // What one run cost and how close it came. Seconds are wall seconds of producing the image from
