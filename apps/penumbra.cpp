@@ -18,6 +18,7 @@
 #include "io/atomic_file.h"
 #include "io/export.h"
 #include "io/image_io.h"
+#include "io/output_set.h"
 #include "io/report.h"
 #include "io/solution.h"
 #include "mesh/scene.h"
@@ -139,21 +140,24 @@ void setupLogging(const CommonOptions& c) {
 
 int runSolve(SolveCli& s, const CommonOptions& common) {
     const Scene scene = loadScene(s.scene);
+    // The outputs appear as one set or not at all (output_set.h); --out is checked before the work.
+    std::vector<std::string> names{"solution.bin", "convergence.csv", "report.json"};
+    if (scene.hasCamera) names.insert(names.end(), {"radiosity.exr", "radiosity.png"});
+    OutputSet outputs(s.out, names);
     const SolveResult r = solveScene(scene, s.resolved(common));
     const CornerValues& corners = r.corners;
 
-    // Everything is computed before the first byte is written; each file appears whole.
-    ensureDirectory(s.out);
-    const std::filesystem::path dir(s.out);
-    writeSolution((dir / "solution.bin").string(), r);
-    writeFileAtomic((dir / "convergence.csv").string(), convergenceCsv(r));
+    outputs.write("solution.bin", [&](const std::string& path) { writeSolution(path, r); });
+    outputs.write("convergence.csv", [&](const std::string& path) { writeFileAtomic(path, convergenceCsv(r)); });
     if (scene.hasCamera) {
         const Image view =
             renderRadiosityView(scene, scene.camera, r.patches, *r.rays, corners, {s.viewSpp, common.seed});
-        writeLinearImage(view, (dir / "radiosity.exr").string());
-        writePreviewPng(view, (dir / "radiosity.png").string());
+        outputs.write("radiosity.exr", [&](const std::string& path) { writeLinearImage(view, path); });
+        outputs.write("radiosity.png", [&](const std::string& path) { writePreviewPng(view, path); });
     }
-    writeFileAtomic((dir / "report.json").string(), reportJson(scene, r, peakMemoryBytes()));
+    outputs.write("report.json",
+                  [&](const std::string& path) { writeFileAtomic(path, reportJson(scene, r, peakMemoryBytes())); });
+    outputs.commit();
     const Rgb& e = r.power.totalEmitted;
     logInfo("wrote ", s.out, ": ", r.patches.size(), " patches, emitted ", e.sum(), " W, absorbed ",
             r.power.totalAbsorbed.sum(), " W, escaped ", r.power.escaped.sum(), " W");
@@ -223,6 +227,22 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     if (ext != ".exr" && ext != ".hdr") throw Error(cat("--out ", c.out, ": expected an .exr or .hdr file name"));
     const int spp = c.spp > 0 ? c.spp : entry.defaultSpp;
     c.gather.solvedIndirect = c.indirect == "solution";
+    // One camera, or a turntable of them: OUT-000.exr, OUT-001.exr, ... and OUT-orbit.json, each
+    // image with its preview; all appear together, or none (output_set.h), and --out is checked now.
+    std::vector<std::string> names{out.filename().string()};
+    if (c.orbit > 0) {
+        names.clear();
+        for (int k = 0; k < c.orbit; ++k) {
+            char suffix[16];
+            std::snprintf(suffix, sizeof suffix, "-%03d", k);
+            names.push_back(out.stem().string() + suffix + ext);
+        }
+    }
+    std::vector<std::string> files;
+    for (const std::string& name : names) files.insert(files.end(), {name, previewPathFor(name)});
+    const std::string orbitList = out.stem().string() + "-orbit.json";
+    if (c.orbit > 0) files.push_back(orbitList);
+    OutputSet outputs(out.parent_path().string(), files, cat(".", out.filename().string(), ".lock"));
 
     // The geometry: the solve's patches, or (path tracer) the scene meshed as a solve would mesh it.
     SolveResult stored;
@@ -233,18 +253,8 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     } else {
         stored = solutionFor(scene, c, s, common, integrator == "final-gather" ? spp : 0);
     }
-    // One camera, or a turntable of them: OUT-000.exr, OUT-001.exr, ... and OUT-orbit.json.
     std::vector<Camera> cameras{camera};
-    std::vector<std::string> names{c.out};
-    if (c.orbit > 0) {
-        cameras = orbitCameras(camera, patchesCentre(stored.patches), c.orbit);
-        names.clear();
-        for (int k = 0; k < c.orbit; ++k) {
-            char suffix[16];
-            std::snprintf(suffix, sizeof suffix, "-%03d", k);
-            names.push_back((out.parent_path() / (out.stem().string() + suffix + ext)).string());
-        }
-    }
+    if (c.orbit > 0) cameras = orbitCameras(camera, patchesCentre(stored.patches), c.orbit);
 
     Timer timer;
     const CounterValues before = counterValues();
@@ -259,15 +269,21 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     logInfo("render counters: ", counted);
 
     // Everything is rendered before the first file is written.
-    if (!out.parent_path().empty()) ensureDirectory(out.parent_path().string());
+    std::vector<std::string> paths;  // where the images land, as the orbit list names them
     for (size_t k = 0; k < images.size(); ++k) {
-        writeLinearImage(images[k], names[k]);
-        writePreviewPng(images[k], previewPathFor(names[k]), c.exposure);
+        outputs.write(names[k], [&](const std::string& path) { writeLinearImage(images[k], path); });
+        outputs.write(previewPathFor(names[k]),
+                      [&](const std::string& path) { writePreviewPng(images[k], path, c.exposure); });
+        paths.push_back((out.parent_path() / names[k]).string());
     }
+    const std::string list = (out.parent_path() / orbitList).string();
+    if (c.orbit > 0)
+        outputs.write(orbitList, [&](const std::string& path) {
+            writeFileAtomic(path, orbitJson(cameras, paths, scene.unitScale));
+        });
+    outputs.commit();
     if (c.orbit > 0) {
-        const std::string list = (out.parent_path() / (out.stem().string() + "-orbit.json")).string();
-        writeFileAtomic(list, orbitJson(cameras, names, scene.unitScale));
-        logInfo("wrote ", images.size(), " orbit views ", names.front(), " .. ", names.back(), " and their cameras in ",
+        logInfo("wrote ", images.size(), " orbit views ", paths.front(), " .. ", paths.back(), " and their cameras in ",
                 list, " (", camera.width, "x", camera.height, ", ", integrator, ", ", spp, " spp) in ", seconds, " s");
     } else {
         logInfo("wrote ", c.out, " and ", previewPathFor(c.out), " (", camera.width, "x", camera.height, ", ",
@@ -609,6 +625,7 @@ int main(int argc, char** argv) {
     }
     try {
         setupLogging(common);
+        installSignalCleanup();
         if (*solveCmd) return runSolve(solve, common);
         if (*renderCmd) return runRender(render, renderSolve, common);
         if (*exportCmd) return runExport(exportDir, exportOut, exportFormat, exportStops);

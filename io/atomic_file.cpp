@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "core/error.h"
+#include "io/output_set.h"
 
 namespace penumbra {
 
@@ -17,6 +18,12 @@ std::string temporarySibling(const std::string& path) {
 
 void commitFile(const std::string& temporary, const std::string& path) {
     std::error_code ec;
+    try {
+        faultPoint(path);
+    } catch (...) {
+        std::filesystem::remove(temporary, ec);
+        throw;
+    }
     std::filesystem::rename(temporary, path, ec);
     if (ec) {
         std::filesystem::remove(temporary, ec);
@@ -25,6 +32,7 @@ void commitFile(const std::string& temporary, const std::string& path) {
 }
 
 void writeFileAtomic(const std::string& path, const std::string& contents) {
+    faultPoint(path);
     const std::string tmp = temporarySibling(path);
     {
         std::ofstream out(tmp, std::ios::binary);

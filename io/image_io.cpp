@@ -10,8 +10,10 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <memory>
 
@@ -19,6 +21,7 @@
 #include "core/parallel.h"
 #include "io/atomic_file.h"
 #include "io/oiio_module.h"
+#include "io/output_set.h"
 
 namespace penumbra {
 namespace {
@@ -69,6 +72,7 @@ const OiioModule& oiio() {
 // Writes through `write(temporary)`, then renames into place; a failed write leaves nothing.
 template <typename Write>
 void writeAtomically(const std::string& path, Write&& write) {
+    faultPoint(path);
     const std::string tmp = temporarySibling(path);
     try {
         write(tmp);
@@ -88,6 +92,38 @@ void writeWithOiio(const std::string& path, int w, int h, bool isFloat, const vo
     });
 }
 
+// OpenEXR's output through stdio, every write checked, and the close too: its own std::ofstream
+// stream drops the error of the last buffer's flush, which it makes when it closes (a full disk left a
+// 0-byte EXR and a zero exit).
+class CheckedFile : public Imf::OStream {
+public:
+    explicit CheckedFile(const std::string& path) : Imf::OStream(path.c_str()), file_(std::fopen(path.c_str(), "wb")) {
+        if (!file_) throw Error(cat("cannot create ", path, ": ", std::strerror(errno)));
+    }
+    ~CheckedFile() override {
+        if (file_) std::fclose(file_);
+    }
+    void write(const char c[], int n) override {
+        if (std::fwrite(c, 1, size_t(n), file_) != size_t(n)) fail();
+    }
+    uint64_t tellp() override { return uint64_t(std::ftell(file_)); }
+    void seekp(uint64_t pos) override {
+        if (std::fseek(file_, long(pos), SEEK_SET) != 0) fail();
+    }
+    // Flushes and closes the file; throws if the data did not all reach it.
+    void close() {
+        FILE* f = file_;
+        file_ = nullptr;
+        const bool flushed = std::fflush(f) == 0 && !std::ferror(f);
+        const int error = errno;
+        if (std::fclose(f) != 0 || !flushed) throw Error(cat(fileName(), ": ", std::strerror(flushed ? errno : error)));
+    }
+
+private:
+    [[noreturn]] void fail() { throw Error(cat(fileName(), ": ", std::strerror(errno))); }
+    FILE* file_;
+};
+
 // Linear RGB as 32-bit float EXR, uncompressed: ZIP (what OpenImageIO wrote) took 0.07-0.08 s of
 // OpenEXR's two threads for a 512 x 512 picture, at any zlib level, to save 10% of its 3.1 MB (the
 // low bits of float radiance are noise to zlib); OpenEXR writes it plain in 0.004 s.
@@ -104,9 +140,13 @@ void writeExr(const std::string& path, const Image& image) {
                 names[c],
                 Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(image.rgb.data() + c)), pixel, row));
         }
-        Imf::OutputFile out(tmp.c_str(), header, std::max(1, threadCount()));
-        out.setFrameBuffer(frame);
-        out.writePixels(image.height);
+        CheckedFile file(tmp);
+        {
+            Imf::OutputFile out(file, header, std::max(1, threadCount()));
+            out.setFrameBuffer(frame);
+            out.writePixels(image.height);
+        }  // the line offsets written
+        file.close();
     });
 }
 
