@@ -1,11 +1,13 @@
 // The `penumbra` command line: parses, calls the library, catches once, exits. The verbs and
 // options are those of shared/CONTRACT.md plus extensions listed in `penumbra --help`.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
 #include <tuple>
 
 #include "allocator.h"
@@ -90,15 +92,61 @@ const CLI::Validator kPositive(
     },
     "POSITIVE");
 
+// A number in [lo, hi], with one short message: CLI11's own check said "Value abc not in range",
+// printed a double's bounds in 309 digits and let NaN through.
+CLI::Validator inRange(double lo, double hi) {
+    auto text = [](double v) {
+        char buffer[32];
+        std::snprintf(buffer, sizeof buffer, "%.15g", v);
+        return std::string(buffer);
+    };
+    return CLI::Validator(
+        [=](std::string& value) {
+            char* end = nullptr;
+            const double v = std::strtod(value.c_str(), &end);
+            return end != value.c_str() && *end == 0 && std::isfinite(v) && v >= lo && v <= hi
+                       ? std::string()
+                       : cat("expected a number in [", text(lo), ", ", text(hi), "], got ", value);
+        },
+        "");
+}
+
+// Every number an option takes is finite: CLI11's range checks let NaN through (--tolerance nan ran
+// 20,000 iterations) and strtod reads "inf". Added to every FLOAT option of `app` and its commands.
+const CLI::Validator kFinite(
+    [](std::string& text) {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        return end != text.c_str() && *end == 0 && std::isfinite(v) ? std::string()
+                                                                    : cat("expected a finite number, got ", text);
+    },
+    "");
+
+void requireFiniteNumbers(CLI::App& app) {
+    for (CLI::Option* o : app.get_options())
+        if (o->get_type_name().rfind("FLOAT", 0) == 0) o->check(kFinite);
+    for (CLI::App* sub : app.get_subcommands(std::function<bool(CLI::App*)>())) requireFiniteNumbers(*sub);
+}
+
+// --threads: 0 (all cores) up to 8 threads a core (at least 64). More went straight to TBB and ran
+// out of memory building the ray scene at 2,000,000,000; -1 silently meant all cores.
+const CLI::Validator kThreads(
+    [](std::string& text) {
+        const long cap = std::max(64L, 8L * long(std::max(1u, std::thread::hardware_concurrency())));
+        char* end = nullptr;
+        const long v = std::strtol(text.c_str(), &end, 10);
+        return end != text.c_str() && *end == 0 && v >= 0 && v <= cap
+                   ? std::string()
+                   : cat("expected 0 (all cores) or a thread count up to ", cap, ", got ", text);
+    },
+    "");
+
 void addSolveOptions(CLI::App* cmd, SolveCli& s) {
     for (const SolveSetting& e : solveSettings(s.options)) {
         CLI::Option* option = std::visit([&](auto* value) { return cmd->add_option(e.flag, *value, e.help); }, e.value);
-        if (std::holds_alternative<int*>(e.value))
-            option->check(CLI::Range(int64_t(e.min), int64_t(e.max)));
-        else if (std::isinf(e.max) && e.min == 0)
-            option->check(kPositive);
-        else
-            option->check(CLI::Range(e.min, e.max));
+        option->check(std::isinf(e.max) && e.min == 0 && !std::holds_alternative<int*>(e.value)
+                          ? kPositive
+                          : inRange(e.min, e.max));
         if (e.showDefault) option->capture_default_str();
         if (std::string(e.key) == "patches") s.patches = option;
         if (std::string(e.key) == "patches_per_object") s.perObject = option;
@@ -442,7 +490,7 @@ int main(int argc, char** argv) {
     CLI::App app{"penumbra: global illumination by radiosity, photon mapping and final gathering"};
     app.require_subcommand(1);
     CommonOptions common;
-    app.add_option("--threads", common.threads, "Threads (0: all cores)");
+    app.add_option("--threads", common.threads, "Threads (0: all cores)")->check(kThreads);
     app.add_flag("--quiet,-q", common.quiet, "Warnings and errors only");
     app.add_flag("--verbose,-v", common.verbose, "Debug output");
     app.add_option("--seed", common.seed, "Random seed (results are reproducible for a seed)");
@@ -469,11 +517,11 @@ int main(int argc, char** argv) {
     }
     renderCmd->add_option("--integrator", render.integrator, integratorHelp)->capture_default_str();
     renderCmd->add_option("--spp", render.spp, cat("Samples per pixel (default: ", sppHelp, ")"))
-        ->check(CLI::Range(1, 1 << 20));
+        ->check(inRange(1, 1 << 20));
     renderCmd
         ->add_option("--direct-samples", render.gather.directSamples, "Final gather: emitter samples per camera sample")
         ->capture_default_str()
-        ->check(CLI::Range(1, 4096));
+        ->check(inRange(1, 4096));
     renderCmd
         ->add_option("--indirect", render.indirect,
                      "Final gather: solution: the solve's indirect light read where the camera looks, with the small "
@@ -484,15 +532,15 @@ int main(int argc, char** argv) {
         ->check(CLI::IsMember({"solution", "gather"}));
     renderCmd->add_option("--gather-rays", render.gather.gatherRays, "Final gather: gather rays per camera sample")
         ->capture_default_str()
-        ->check(CLI::Range(1, 65536));
+        ->check(inRange(1, 65536));
     renderCmd
         ->add_option("--close-factor", render.gather.closeFactor,
                      "Final gather: hits nearer than this many patch radii are shaded one bounce deeper")
         ->capture_default_str()
-        ->check(CLI::Range(0.0, 1000.0));
+        ->check(inRange(0.0, 1000.0));
     renderCmd->add_option("--photons", render.photons.photons, "Caustic photons emitted")
         ->capture_default_str()
-        ->check(CLI::Range(int64_t(1), int64_t(1) << 34));
+        ->check(inRange(1, double(int64_t(1) << 34)));
     renderCmd
         ->add_option("--photon-aim", render.photons.aim,
                      "Aim the caustic photons at spheres around the mirrors and glass (only those count; false: "
@@ -500,22 +548,22 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     renderCmd->add_option("--photon-k", render.photons.nearest, "Photons per caustic density estimate")
         ->capture_default_str()
-        ->check(CLI::Range(1, 100000));
+        ->check(inRange(1, 100000));
     renderCmd
         ->add_option("--photon-precompute", render.photons.precompute,
                      "Precompute the caustic estimate at every Nth stored photon (0: estimate at every lookup)")
         ->capture_default_str()
-        ->check(CLI::Range(0, 1000000));
+        ->check(inRange(0, 1000000));
     renderCmd->add_option("--max-depth", render.gather.maxSpecularDepth, "Mirror and glass bounces per path")
         ->capture_default_str()
-        ->check(CLI::Range(0, 1000));
+        ->check(inRange(0, 1000));
     renderCmd->add_option("--resolution", render.resolution, "WIDTHxHEIGHT, overrides the camera's");
     renderCmd->add_option("--camera", render.camera, "Camera as JSON, overrides the scene's");
     renderCmd
         ->add_option(
             "--orbit", render.orbit,
             "Render N views on a circle around the scene's centre (OUT-000.exr, ...; cameras in OUT-orbit.json)")
-        ->check(CLI::Range(1, 100000));
+        ->check(inRange(1, 100000));
     renderCmd->add_option("--exposure", render.exposure, "Exposure of the PNG preview, in stops");
     addSolveOptions(renderCmd, renderSolve);
 
@@ -549,23 +597,23 @@ int main(int argc, char** argv) {
         ->add_option("--error", reference.settings.targetError,
                      "Sample each object until its standard error is below this share of its mean")
         ->capture_default_str()
-        ->check(CLI::Range(1e-5, 1.0));
+        ->check(inRange(1e-5, 1.0));
     referenceCmd->add_option("--min-points", reference.settings.minSamples, "Points on each object at least")
         ->capture_default_str()
-        ->check(CLI::Range(int64_t(1), int64_t(1) << 40));
+        ->check(inRange(1, double(int64_t(1) << 40)));
     referenceCmd->add_option("--max-points", reference.settings.maxSamples, "Points on each object at most")
         ->capture_default_str()
-        ->check(CLI::Range(int64_t(1), int64_t(1) << 40));
+        ->check(inRange(1, double(int64_t(1) << 40)));
     referenceCmd
         ->add_option("--min-area", reference.settings.minArea,
                      "Estimate only the objects of at least this area, m^2 (a large scene's walls and floors)")
         ->capture_default_str()
-        ->check(CLI::Range(0.0, 1e30));
+        ->check(inRange(0.0, 1e30));
     referenceCmd
         ->add_option("--patches", reference.patches,
                      "Patches the geometry is meshed into (only curved objects depend on it)")
         ->capture_default_str()
-        ->check(CLI::Range(1, 100000000));
+        ->check(inRange(1, 100000000));
 
     CLI::App* viewCmd = app.add_subcommand("view", "Browse a solved scene interactively");
     RenderCli view;
@@ -580,11 +628,11 @@ int main(int argc, char** argv) {
                         "Draw --frames frames from the camera, save the last to this PNG and exit");
     viewCmd->add_option("--frames", viewer.frames, "Frames drawn before --screenshot")
         ->capture_default_str()
-        ->check(CLI::Range(1, 100000));
+        ->check(inRange(1, 100000));
     viewCmd
         ->add_option("--gather-passes", viewer.gatherPasses,
                      "With --screenshot: save the in-window final gather after this many passes instead")
-        ->check(CLI::Range(1, 1 << 20));
+        ->check(inRange(1, 1 << 20));
     viewCmd->add_flag("--screenshot-window", viewer.wholeWindow,
                       "With --screenshot: save the window as shown, panel included");
     addSolveOptions(viewCmd, viewSolve);
@@ -605,16 +653,17 @@ int main(int argc, char** argv) {
     benchCmd
         ->add_option("--reference-spp", benchOptions.referenceSpp,
                      "Samples per pixel of the path-traced reference (default 4096, quick 1024)")
-        ->check(CLI::Range(1, 1 << 24));
+        ->check(inRange(1, 1 << 24));
     benchCmd->add_option("--cache", benchOptions.cache, "Folder for cached references (default ~/.cache/penumbra)");
 
     for (CLI::App* cmd : {solveCmd, renderCmd, viewCmd, exportCmd, benchCmd, referenceCmd}) {
-        cmd->add_option("--threads", common.threads, "Threads (0: all cores)");
+        cmd->add_option("--threads", common.threads, "Threads (0: all cores)")->check(kThreads);
         cmd->add_flag("--quiet,-q", common.quiet, "Warnings and errors only");
         cmd->add_flag("--verbose,-v", common.verbose, "Debug output");
         cmd->add_option("--seed", common.seed, "Random seed");
     }
 
+    requireFiniteNumbers(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

@@ -3,7 +3,11 @@
 #include <OpenMesh/Core/IO/MeshIO.hh>
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
 #include <OpenMesh/Core/System/omstream.hh>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include "core/error.h"
 
@@ -16,6 +20,69 @@ struct ReadTraits : public OpenMesh::DefaultTraits {
 using ReadMesh = OpenMesh::PolyMesh_ArrayKernelT<ReadTraits>;
 }  // namespace
 
+namespace {
+
+// Refuses a mesh file whose header claims more elements than its bytes can hold (an OFF file of 60
+// bytes claiming 100,000 elements hung OpenMesh's reader; PLY and STL headers claiming 2^31 faces ran
+// out of memory) and an OBJ face whose vertex index is out of range (OpenMesh dropped it silently):
+// by the file's name, and the line where there is one.
+void checkMeshFile(const std::string& path, const std::string& ext, const std::string& field) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    const uintmax_t size = fs::file_size(path, ec);
+    if (ec) return;  // the reader says what is wrong
+    std::ifstream in(path, std::ios::binary);
+    const std::string where = cat(field, ": mesh file '", path, "'");
+    auto tooMany = [&](uintmax_t claimed, const std::string& what) {
+        throw Error(cat(where, " claims ", claimed, " ", what, " in ", size, " bytes: it is damaged or cut short"));
+    };
+    if (ext == ".obj") {
+        std::string line;
+        long long vertices = 0;
+        for (size_t number = 1; std::getline(in, line); ++number) {
+            if (line.size() > 1 && line[0] == 'v' && (line[1] == ' ' || line[1] == '\t')) ++vertices;
+            if (line.size() < 2 || line[0] != 'f' || (line[1] != ' ' && line[1] != '\t')) continue;
+            std::istringstream tokens(line.substr(2));
+            for (std::string token; tokens >> token;) {
+                const long long index = std::atoll(token.c_str());
+                if (index == 0 || index > vertices || -index > vertices)
+                    throw Error(cat(where, " line ", number, ": face vertex index ", token.substr(0, token.find('/')),
+                                    " is out of range (", vertices, " vertices before it)"));
+            }
+        }
+    } else if (ext == ".off") {
+        std::string word;
+        long long counts[2] = {0, 0};
+        in >> word;  // OFF, COFF, NOFF, ...
+        for (long long& c : counts)
+            if (!(in >> c)) return;  // binary or malformed: the reader decides
+        if (counts[0] < 0 || counts[1] < 0 || uintmax_t(counts[0] + counts[1]) > size)
+            tooMany(uintmax_t(counts[0]) + uintmax_t(counts[1]), "vertices and faces");
+    } else if (ext == ".ply") {
+        uintmax_t claimed = 0;
+        for (std::string line; std::getline(in, line) && line.rfind("end_header", 0) != 0;) {
+            std::istringstream words(line);
+            std::string element, name;
+            long long count = 0;
+            if (words >> element >> name >> count && element == "element") {
+                if (count < 0) tooMany(uintmax_t(0), "elements (a negative count)");
+                claimed += uintmax_t(count);
+            }
+        }
+        if (claimed > size) tooMany(claimed, "elements");
+    } else if (ext == ".stl") {
+        char head[84] = {};
+        in.read(head, sizeof head);
+        if (in.gcount() == 84 && std::string(head, 5) != "solid") {
+            uint32_t triangles = 0;
+            std::memcpy(&triangles, head + 80, 4);
+            if (84 + 50 * uintmax_t(triangles) > size) tooMany(triangles, "triangles");
+        }
+    }
+}
+
+}  // namespace
+
 PolygonSoup readPolygonSoup(const std::string& path, const std::string& field) {
     namespace fs = std::filesystem;
     std::error_code ec;
@@ -26,6 +93,7 @@ PolygonSoup readPolygonSoup(const std::string& path, const std::string& field) {
     if (ext != ".obj" && ext != ".ply" && ext != ".off" && ext != ".stl")
         throw Error(cat(field, ": mesh file '", path, "' has an unsupported format '", ext,
                         "' (expected .obj, .ply, .off or .stl)"));
+    checkMeshFile(path, ext, field);
     omlog().disable();
     omerr().disable();
     omout().disable();

@@ -3,9 +3,11 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
+#include <vector>
 
 #include "core/error.h"
 #include "core/log.h"
@@ -19,18 +21,74 @@ using Json = nlohmann::json;
 
 // Coordinates beyond this many metres are taken as a unit mistake, not a scene.
 constexpr double kAbsurdMetres = 1e8;
+// Radiance beyond this, W sr^-1 m^-2: the sun's is about 2e7.
+constexpr double kAbsurdRadiance = 1e20;
 
 uint64_t fnv1a(const std::string& bytes, uint64_t h = 1469598103934665603ull) {
     for (unsigned char c : bytes) h = (h ^ c) * 1099511628211ull;
     return h;
 }
 
+// A scene or mesh file larger than this is refused before it is read.
+constexpr uintmax_t kMaxFileBytes = uintmax_t(1) << 31;
+
+// The bytes of a regular file: a folder, a device (/dev/zero was read until memory ran out), a pipe
+// or a file past kMaxFileBytes is refused by name, and so is one that cannot be opened, with why.
 std::string readFile(const std::string& path, const std::string& what) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    const fs::file_status status = fs::status(path, ec);
+    if (ec) throw Error(cat(path, ": cannot open the ", what, ": ", ec.message()));
+    if (fs::is_directory(status)) throw Error(cat(path, ": is a folder, not a ", what));
+    if (!fs::is_regular_file(status))
+        throw Error(cat(path, ": is not a regular file (a device, pipe or socket), so not read as a ", what));
+    const uintmax_t size = fs::file_size(path, ec);
+    if (!ec && size > kMaxFileBytes)
+        throw Error(cat(path, ": ", size, " bytes, more than a ", what, " may hold (", kMaxFileBytes, ")"));
     std::ifstream in(path, std::ios::binary);
-    if (!in) throw Error(cat(path, ": cannot open ", what));
+    if (!in) throw Error(cat(path, ": cannot open the ", what));
     std::stringstream ss;
     ss << in.rdbuf();
     return ss.str();
+}
+
+// The first key that an object of `text` (JSON the parser accepted) holds twice, with the lines of
+// both, as "key 'white' on lines 3 and 7"; empty if none. The parser keeps the last silently: two
+// "white" materials, or a second "objects": [] that emptied the scene.
+std::string duplicateKey(const std::string& text) {
+    struct Level {
+        bool object;
+        std::map<std::string, size_t> keys;  // key -> line
+        bool expectKey;
+    };
+    std::vector<Level> stack;
+    size_t line = 1;
+    for (size_t i = 0; i < text.size(); ++i) {
+        const char c = text[i];
+        if (c == '\n') {
+            ++line;
+        } else if (c == '{' || c == '[') {
+            stack.push_back({c == '{', {}, c == '{'});
+        } else if (c == '}' || c == ']') {
+            if (!stack.empty()) stack.pop_back();
+        } else if (c == ',') {
+            if (!stack.empty() && stack.back().object) stack.back().expectKey = true;
+        } else if (c == '"') {
+            std::string value;
+            const size_t at = line;
+            for (++i; i < text.size() && text[i] != '"'; ++i) {
+                if (text[i] == '\\' && i + 1 < text.size()) value += text[i++];
+                value += text[i];
+            }
+            if (!stack.empty() && stack.back().object && stack.back().expectKey) {
+                stack.back().expectKey = false;
+                const auto [it, fresh] = stack.back().keys.emplace(value, at);
+                if (!fresh && value.rfind("_", 0) != 0)
+                    return cat("key '", value, "' on lines ", it->second, " and ", at);
+            }
+        }
+    }
+    return "";
 }
 
 // Context for error messages: "scene.json: objects[2] 'floor': vertices: ..."
@@ -108,6 +166,12 @@ Material parseMaterial(const std::string& name, const Json& j, const Where& w) {
         if (j.contains("emission")) {
             m.emission = rgb(j["emission"], w.at("emission"));
             if ((m.emission < 0).any()) w.at("emission").fail("emission radiance must not be negative");
+            // Light of 1e300 overflowed to infinite pixels without a word. Past 1e20 W sr^-1 m^-2 (a
+            // hundred million suns) the solve's sums in double lose their digits too.
+            if ((m.emission > kAbsurdRadiance).any())
+                w.at("emission")
+                    .fail(cat("emission radiance above ", kAbsurdRadiance,
+                              " W sr^-1 m^-2 is taken as a unit mistake, not a lamp"));
         }
     } else if (t == "mirror") {
         checkKeys(j, w, {"type", "reflectance"});
@@ -210,10 +274,18 @@ Camera parseCameraJson(const Json& j, double unitScale, const Where& w) {
         const Where wr = w.at("resolution");
         if (!r.is_array() || r.size() != 2 || !r[0].is_number_integer() || !r[1].is_number_integer())
             wr.fail("expected [width, height] as two integers");
-        c.width = r[0].get<int>();
-        c.height = r[1].get<int>();
-        if (c.width < 1 || c.height < 1 || c.width > 16384 || c.height > 16384)
-            wr.fail(cat("width and height must lie in [1, 16384], got ", c.width, "x", c.height));
+        // Read wide, then bounded: as int, 4294967328 wrapped to 32 and 2^64 - 1 read as -1.
+        auto side = [&](const Json& v) {
+            return v.is_number_unsigned() ? std::to_string(v.get<uint64_t>()) : std::to_string(v.get<int64_t>());
+        };
+        const auto inRange = [](const Json& v) {
+            return v.is_number_unsigned() ? v.get<uint64_t>() >= 1 && v.get<uint64_t>() <= 16384
+                                          : v.get<int64_t>() >= 1 && v.get<int64_t>() <= 16384;
+        };
+        if (!inRange(r[0]) || !inRange(r[1]))
+            wr.fail(cat("width and height must lie in [1, 16384], got ", side(r[0]), "x", side(r[1])));
+        c.width = int(r[0].get<int64_t>());
+        c.height = int(r[1].get<int64_t>());
     }
     return c;
 }
@@ -238,6 +310,8 @@ Camera parseCamera(const std::string& text, double unitScale, const std::string&
         j = Json::parse(text);
     } catch (const Json::parse_error& e) {
         throw Error(cat(where, ": not valid JSON: ", e.what()));
+    } catch (const Json::out_of_range&) {  // a literal beyond double precision, such as 1e999
+        throw Error(cat(where, ": a number beyond double precision (numbers must be finite)"));
     }
     return parseCameraJson(j, unitScale, Where{where, ""});
 }
@@ -266,6 +340,8 @@ Scene loadScene(const std::string& path) {
         throw Error(cat(path, ": malformed JSON: ", p == std::string::npos ? what : what.substr(p),
                         " (numbers must be finite)"));
     }
+    if (const std::string twice = duplicateKey(text); !twice.empty())
+        throw Error(cat(path, ": ", twice, " of one object: each key may appear once"));
     const Where top{path, ""};
     checkKeys(root, top, {"unit_scale", "materials", "objects", "camera"});
 

@@ -41,10 +41,18 @@ void checkSteadyState(const Scene& scene, const RadiositySystem& s, const std::v
         loss += s.area[i] * std::max(0.0, 1 - rows[i]);
     }
     const double escapeFraction = area > 0 ? loss / area : 1;
+    // What a surface keeps of the light it meets: a mirror its tint, glass its transmittance
+    // (Fresnel's split loses nothing). A box of reflectance-1 mirrors around a reflectance-1 emitter
+    // was accepted when only the diffuse surfaces were looked at.
+    auto keeps = [&](size_t i, int c) {
+        if (!s.specular[i]) return s.reflectance[i][c];
+        const Material& m = scene.materialOf(scene.objects[size_t(s.object[i])]);
+        return m.type == MaterialType::Mirror ? m.reflectance[c] : m.transmittance[c];
+    };
     for (int c = 0; c < 3; ++c) {
         bool allOne = true, emits = false;
         for (size_t i = 0; i < s.size(); ++i) {
-            allOne = allOne && s.reflectance[i][c] >= 1;
+            allOne = allOne && keeps(i, c) >= 1;
             emits = emits || s.emission[i][c] > 0;
         }
         if (allOne && emits && escapeFraction < 1e-4)

@@ -122,8 +122,77 @@ TEST(CliErrors, MeshFileProblems) {
                   {"'m'", "unsupported format"});
 }
 
+// Issue 15's hostile inputs: each is refused with one line naming the file, field or option.
+TEST(CliErrors, HostileFilesAreRefusedByName) {
+    for (const auto& [path, what] :
+         {std::pair<std::string, std::string>{"/dev/zero", "not a regular file"}, {test::tempDir(), "is a folder"}}) {
+        const std::string out = test::tempDir() + "/hostile-out";
+        const CommandResult r = run(cat("solve ", path, " --out ", out));
+        EXPECT_EQ(r.status, 1) << r.output;
+        EXPECT_NE(r.output.find(cat(path, ": ")), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find(what), std::string::npos) << r.output;
+        EXPECT_FALSE(fs::exists(out));
+    }
+    const std::string loop = test::tempDir() + "/loop.json";
+    fs::remove(loop);
+    fs::create_symlink(loop, loop);
+    const CommandResult r = run(cat("solve ", loop, " --out ", test::tempDir(), "/hostile-out"));
+    EXPECT_NE(r.output.find("symbolic links"), std::string::npos) << r.output;
+    // A 60-byte OFF file claiming 100,000 elements (it hung OpenMesh's reader), an OBJ face past the
+    // vertices (dropped silently), a binary STL claiming 2^31 triangles (out of memory).
+    test::writeText("claims.off", "OFF\n50000 50000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "claims.off"})"),
+                  {"'m'", "claims.off", "claims 100000 vertices and faces"});
+    test::writeText("range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 7\n");
+    expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "range.obj"})"),
+                  {"'m'", "range.obj", "line 5", "index 7 is out of range (3 vertices"});
+    test::writeText("negative.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n");
+    expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "negative.obj"})"),
+                  {"negative.obj", "line 4", "index -4 is out of range"});
+    std::string stl(84, '\0');
+    stl[83] = char(0x80);  // 2^31 triangles in 84 bytes
+    test::writeText("claims.stl", stl);
+    expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "claims.stl"})"),
+                  {"claims.stl", "claims 2147483648 triangles"});
+}
+
+TEST(CliErrors, HostileValuesAreRefusedByName) {
+    // Duplicate keys: the parser kept the last one silently.
+    expectRefused(cat(R"({"materials": {)", kLamp, R"(,
+        "white": {"type": "diffuse", "reflectance": 0.5},
+        "white": {"type": "diffuse", "reflectance": 0.9}},
+      "objects": [{"name": "light", "type": "quad", "material": "lamp", "vertices": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}]})"),
+                  {"key 'white' on lines 2 and 3"});
+    expectRefused(sceneWith(R"("sun": {"type": "diffuse", "reflectance": 0.5, "emission": 1e300})", ""),
+                  {"materials.sun.emission", "unit mistake"});
+    expectRefused(cat(sceneWith("", "").substr(0, sceneWith("", "").size() - 1),
+                      R"(, "camera": {"position": [0,0,5], "look_at": [0,0,0], "up": [0,1,0], "fov_y_deg": 40,
+                          "resolution": [4294967328, 32]}})"),
+                  {"camera.resolution", "got 4294967328x32"});
+    // Options: numbers must be finite, thread counts bounded.
+    expectRefused(sceneWith("", ""), {"--tolerance", "got nan"}, "--tolerance nan");
+    expectRefused(sceneWith("", ""), {"--ff-noise", "expected a number in [1e-06, 1], got nan"}, "--ff-noise nan");
+    expectRefused(sceneWith("", ""), {"--patches", "expected a number in [1, 100000000], got abc"}, "--patches abc");
+    const CommandResult exposure =
+        run(cat("render ", std::string(PENUMBRA_SOURCE_DIR), "/scenes/cornell-box.json --out ", test::tempDir(),
+                "/never.exr --exposure inf"));
+    EXPECT_NE(exposure.output.find("--exposure: expected a finite number, got inf"), std::string::npos)
+        << exposure.output;
+    expectRefused(sceneWith("", ""), {"--max-memory"}, "--max-memory nan");
+    expectRefused(sceneWith("", ""), {"--threads", "thread count"}, "--threads -1");
+    expectRefused(sceneWith("", ""), {"--threads", "thread count"}, "--threads 2000000000");
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
+    const CommandResult camera = run(cat("render ", scene, " --integrator path --out ", test::tempDir(),
+                                         R"(/never.exr --camera '{"position": [1e999, 0, 0]}')"));
+    EXPECT_EQ(camera.status, 1) << camera.output;
+    EXPECT_NE(camera.output.find("--camera"), std::string::npos) << camera.output;
+    EXPECT_NE(camera.output.find("finite"), std::string::npos) << camera.output;
+}
+
 TEST(CliErrors, ClosedWhiteFurnaceHasNoSteadyState) {
     expectRefused(test::closedCube(R"({"type": "diffuse", "reflectance": 1, "emission": 1})"), {"no steady state"});
+    // A reflectance-1 mirror for a wall: still nothing absorbs (only the diffuse walls were looked at).
+    expectRefused(test::furnaceCube(1, R"({"type": "mirror", "reflectance": 1})", true), {"no steady state"});
 }
 
 TEST(CliErrors, OptionProblems) {
