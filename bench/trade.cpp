@@ -277,7 +277,7 @@ const Image& Bench::reference(BenchResult& result) {
     const std::string dir = options_.cache.empty() ? defaultCacheDir() : options_.cache;
     char name[160];
     std::snprintf(name, sizeof name, "reference-%016llx-%dx%d-%dspp-seed%llu.exr",
-                  static_cast<unsigned long long>(scene_.fingerprint), cam.width, cam.height, result.referenceSpp,
+                  static_cast<unsigned long long>(scene_.fileFingerprint), cam.width, cam.height, result.referenceSpp,
                   static_cast<unsigned long long>(options_.seed));
     const std::string path = (std::filesystem::path(dir) / name).string();
     if (std::filesystem::exists(path)) {
@@ -307,7 +307,7 @@ void Bench::measureObjects(BenchResult& result) {
     const std::string dir = options_.cache.empty() ? defaultCacheDir() : options_.cache;
     char name[160];
     std::snprintf(name, sizeof name, "objects-%016llx-%g-seed%llu.txt",
-                  static_cast<unsigned long long>(scene_.fingerprint), target,
+                  static_cast<unsigned long long>(scene_.fileFingerprint), target,
                   static_cast<unsigned long long>(options_.seed));
     const std::string path = (std::filesystem::path(dir) / name).string();
     std::vector<ObjectEstimate> reference(scene_.objects.size());

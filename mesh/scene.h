@@ -63,7 +63,11 @@ struct Scene {
     std::vector<SceneObject> objects;
     bool hasCamera = false;
     Camera camera;
-    uint64_t fingerprint = 0;  // hash of the scene file and mesh files, to match solutions
+    // Hash of what a solve depends on, to match solutions: the parsed scene without its camera and
+    // ignored "_" keys, and the mesh files' bytes (re-indenting the file or moving the camera keeps a
+    // solution valid).
+    uint64_t fingerprint = 0;
+    uint64_t fileFingerprint = 0;  // hash of the scene file's and mesh files' bytes (the bench's caches)
 
     bool hasEmitter() const;
     bool hasSpecular() const;

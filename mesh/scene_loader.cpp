@@ -83,7 +83,7 @@ std::string duplicateKey(const std::string& text) {
             if (!stack.empty() && stack.back().object && stack.back().expectKey) {
                 stack.back().expectKey = false;
                 const auto [it, fresh] = stack.back().keys.emplace(value, at);
-                if (!fresh && value.rfind("_", 0) != 0)
+                if (!fresh && value != "comment" && value.rfind("_", 0) != 0)
                     return cat("key '", value, "' on lines ", it->second, " and ", at);
             }
         }
@@ -104,6 +104,23 @@ struct Where {
 };
 
 bool ignoredKey(const std::string& key) { return key == "comment" || (!key.empty() && key[0] == '_'); }
+
+// The scene JSON as it bears on a solve: without the camera and the ignored keys ("_..." and "comment"), for
+// Scene::fingerprint in nlohmann's canonical form (keys sorted, numbers as parsed).
+Json solveRelevant(const Json& j, bool top) {
+    if (j.is_object()) {
+        Json out = Json::object();
+        for (const auto& [key, value] : j.items())
+            if (!(ignoredKey(key) || (top && key == "camera"))) out[key] = solveRelevant(value, false);
+        return out;
+    }
+    if (j.is_array()) {
+        Json out = Json::array();
+        for (const Json& v : j) out.push_back(solveRelevant(v, false));
+        return out;
+    }
+    return j;
+}
 
 void checkKeys(const Json& j, const Where& w, std::initializer_list<const char*> allowed) {
     if (!j.is_object()) w.fail(cat("expected a JSON object, got ", j.type_name()));
@@ -347,7 +364,8 @@ Scene loadScene(const std::string& path) {
 
     Scene scene;
     scene.path = path;
-    scene.fingerprint = fnv1a(text);
+    scene.fingerprint = fnv1a(solveRelevant(root, true).dump());
+    scene.fileFingerprint = fnv1a(text);
     if (root.contains("unit_scale")) {
         scene.unitScale = number(root["unit_scale"], top.at("unit_scale"));
         if (!(scene.unitScale > 0)) top.at("unit_scale").fail("must be positive");
@@ -418,7 +436,9 @@ Scene loadScene(const std::string& path) {
                 v = o.toWorld * v;
                 checkCoordinate(v, w.at("file"));
             }
-            scene.fingerprint = fnv1a(readFile(o.file, "mesh file"), scene.fingerprint);
+            const std::string bytes = readFile(o.file, "mesh file");
+            scene.fingerprint = fnv1a(bytes, scene.fingerprint);
+            scene.fileFingerprint = fnv1a(bytes, scene.fileFingerprint);
         } else {
             w.at("type").fail(cat("unknown object type '", t, "' (expected quad, triangle, mesh or sphere)"));
         }

@@ -191,6 +191,9 @@ TEST(CliErrors, HostileValuesAreRefusedByName) {
 
 TEST(CliErrors, ClosedWhiteFurnaceHasNoSteadyState) {
     expectRefused(test::closedCube(R"({"type": "diffuse", "reflectance": 1, "emission": 1})"), {"no steady state"});
+    // Nearly 1: a steady state that 20,000 sweeps do not reach is refused, not written unbalanced.
+    expectRefused(test::closedCube(R"({"type": "diffuse", "reflectance": 0.9999999, "emission": 1})"),
+                  {"did not converge", "still unshot", "--max-iterations"});
     // A reflectance-1 mirror for a wall: still nothing absorbs (only the diffuse walls were looked at).
     expectRefused(test::furnaceCube(1, R"({"type": "mirror", "reflectance": 1})", true), {"no steady state"});
 }
@@ -343,6 +346,33 @@ TEST(Cli, EverySolveSettingIsAFlagAndComesBackInTheReport) {
     const nlohmann::json settings = nlohmann::json::parse(in)["settings"];
     for (const auto& [key, given] : values) EXPECT_DOUBLE_EQ(settings.at(key).get<double>(), given) << key;
     EXPECT_EQ(settings.at("seed").get<int>(), 5);
+}
+
+TEST(Cli, ASolutionFitsItsSceneReindentedRecommentedOrSeenFromElsewhere) {
+    // A solution is keyed on what the solve read (geometry, materials, units, mesh files), not the
+    // file's bytes: it was refused after re-indenting the file, editing an ignored "_" key or moving
+    // the camera. Another reflectance is another scene.
+    std::ifstream in(std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json");
+    const nlohmann::json original = nlohmann::json::parse(in);
+    const std::string out = test::tempDir() + "/keyed";
+    fs::remove_all(out);
+    const std::string scene = test::writeText("keyed.json", original.dump());
+    ASSERT_EQ(run(cat("solve ", scene, " --out ", out, " --patches 100 --form-factors rays -q")).status, 0);
+    auto renderWith = [&](const nlohmann::json& j) {
+        const std::string path = test::writeText("keyed-variant.json", j.dump(7));
+        return run(cat("render ", path, " --solution ", out, " --integrator radiosity --resolution 24x24 --out ",
+                       test::tempDir(), "/keyed.exr -q"));
+    };
+    nlohmann::json moved = original;
+    moved["_note"] = "edited";
+    moved["camera"]["position"][0] = moved["camera"]["position"][0].get<double>() + 0.1;
+    const CommandResult same = renderWith(moved);
+    EXPECT_EQ(same.status, 0) << same.output;
+    nlohmann::json other = original;
+    other["materials"]["white"]["reflectance"] = 0.5;
+    const CommandResult refused = renderWith(other);
+    EXPECT_EQ(refused.status, 1) << refused.output;
+    EXPECT_NE(refused.output.find("solve again"), std::string::npos) << refused.output;
 }
 
 TEST(CliErrors, RenderWithoutCameraIsRefused) {
