@@ -3,6 +3,8 @@
 #include <OpenMesh/Core/IO/MeshIO.hh>
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
 #include <OpenMesh/Core/System/omstream.hh>
+#include <algorithm>
+#include <cctype>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -44,31 +46,99 @@ void checkMeshFile(const std::string& path, const std::string& ext, const std::s
             if (line.size() < 2 || line[0] != 'f' || (line[1] != ' ' && line[1] != '\t')) continue;
             std::istringstream tokens(line.substr(2));
             for (std::string token; tokens >> token;) {
-                const long long index = std::atoll(token.c_str());
-                if (index == 0 || index > vertices || -index > vertices)
+                const long long index = std::strtoll(token.c_str(), nullptr, 10);
+                if (index == 0 || index > vertices || index < -vertices)
                     throw Error(cat(where, " line ", number, ": face vertex index ", token.substr(0, token.find('/')),
                                     " is out of range (", vertices, " vertices before it)"));
             }
         }
     } else if (ext == ".off") {
-        std::string word;
-        long long counts[2] = {0, 0};
-        in >> word;  // OFF, COFF, NOFF, ...
-        for (long long& c : counts)
-            if (!(in >> c)) return;  // binary or malformed: the reader decides
-        if (counts[0] < 0 || counts[1] < 0 || uintmax_t(counts[0] + counts[1]) > size)
-            tooMany(uintmax_t(counts[0]) + uintmax_t(counts[1]), "vertices and faces");
-    } else if (ext == ".ply") {
-        uintmax_t claimed = 0;
-        for (std::string line; std::getline(in, line) && line.rfind("end_header", 0) != 0;) {
+        // [ST][C][N][4][n]OFF, then the vertex, face and edge counts: OpenMesh's reader took counts
+        // out of other bytes (an 'OFF1' header asked for 16 GiB).
+        // As OpenMesh reads it: the keyword alone on the first line, the counts on the next (it took
+        // "OFF 0 0" as a header and the next line's numbers as counts).
+        std::string word, line;
+        std::getline(in, word);
+        while (!word.empty() && std::isspace(static_cast<unsigned char>(word.back()))) word.pop_back();
+        const bool header = word.size() >= 3 && word.compare(word.size() - 3, 3, "OFF") == 0 &&
+                            word.find_first_not_of("STCN4n") == word.size() - 3;
+        if (!header)
+            throw Error(cat(where, ": not a text OFF file (its first line is '", word.substr(0, 20),
+                            "'; binary OFF is not read: save it as text OFF, PLY or OBJ)"));
+        auto whole = [](const std::string& v) {
+            return !v.empty() && v.size() < 12 && v.find_first_not_of("0123456789") == std::string::npos;
+        };
+        // Three whole numbers, each all digits (OpenMesh read "0-1" as 0 faces and -1 edges, and
+        // reserved for 2^32 of them).
+        std::string t[4];
+        std::getline(in, line);
+        std::istringstream countWords(line);
+        if (!(countWords >> t[0] >> t[1] >> t[2]) || countWords >> t[3] || !whole(t[0]) || !whole(t[1]) || !whole(t[2]))
+            throw Error(cat(where, ": expected the vertex, face and edge counts on the line after ", word));
+        const long long vertices = std::atoll(t[0].c_str()), faces = std::atoll(t[1].c_str());
+        if (uintmax_t(vertices + faces) > size) tooMany(uintmax_t(vertices + faces), "vertices and faces");
+        // Each face: its corner count (3 or more) and that many vertex indices in range (a face of
+        // "-01" corners grew OpenMesh's list until memory ran out).
+        long long seen = 0;
+        for (size_t number = 0; seen < vertices + faces && std::getline(in, line); ++number) {
             std::istringstream words(line);
-            std::string element, name;
-            long long count = 0;
-            if (words >> element >> name >> count && element == "element") {
-                if (count < 0) tooMany(uintmax_t(0), "elements (a negative count)");
-                claimed += uintmax_t(count);
+            std::string first;
+            if (!(words >> first) || first[0] == '#') continue;
+            if (seen++ < vertices) continue;
+            if (!whole(first) || std::atoll(first.c_str()) < 3 || std::atoll(first.c_str()) > 1000000)
+                throw Error(cat(where, ": face ", seen - vertices, " has '", first.substr(0, 12),
+                                "' corners (expected a whole number of 3 or more)"));
+            for (long long k = std::atoll(first.c_str()); k > 0; --k) {
+                std::string index;
+                if (!(words >> index) || !whole(index) || std::atoll(index.c_str()) >= vertices)
+                    throw Error(cat(where, ": face ", seen - vertices, " has a vertex index out of range or missing (",
+                                    vertices, " vertices)"));
             }
         }
+    } else if (ext == ".ply") {
+        // The header, line by line, as the format defines it: OpenMesh's reader looped forever on
+        // a header with a misspelt keyword and no end_header (found by tests/fuzz).
+        uintmax_t claimed = 0;
+        bool ended = false, elementSeen = false;
+        std::string line;
+        for (size_t number = 1; !ended && std::getline(in, line); ++number) {
+            if (!line.empty() && line.back() == '\r') line.pop_back();
+            std::istringstream words(line);
+            std::string keyword;
+            words >> keyword;
+            if (number == 1 ? keyword != "ply"
+                            : keyword != "format" && keyword != "comment" && keyword != "obj_info" &&
+                                  keyword != "element" && keyword != "property" && keyword != "end_header")
+                throw Error(cat(where, " line ", number, ": not a PLY header line: '", line.substr(0, 40), "'"));
+            ended = keyword == "end_header";
+            auto bad = [&](const char* what) {
+                throw Error(cat(where, " line ", number, ": ", what, ": '", line.substr(0, 40), "'"));
+            };
+            auto scalar = [](const std::string& t) {
+                for (const char* k : {"char", "uchar", "short", "ushort", "int", "uint", "float", "double", "int8",
+                                      "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64"})
+                    if (t == k) return true;
+                return false;
+            };
+            std::string a, b, c, rest;
+            if (keyword == "format") {
+                if (!(words >> a >> b) || (a != "ascii" && a != "binary_little_endian" && a != "binary_big_endian") ||
+                    b != "1.0" || words >> rest)
+                    bad("expected format ascii, binary_little_endian or binary_big_endian, version 1.0");
+            } else if (keyword == "element") {
+                long long count = -1;
+                if (!(words >> a >> count) || count < 0 || words >> rest)
+                    bad("expected element NAME COUNT, the count a whole number");
+                claimed += uintmax_t(count);
+                elementSeen = true;
+            } else if (keyword == "property") {
+                if (!elementSeen) bad("a property before any element (OpenMesh crashed on it)");
+                const bool list = words >> a && a == "list";
+                if (list ? !(words >> b >> c >> rest) || !scalar(b) || !scalar(c) : !scalar(a) || !(words >> b))
+                    bad("expected property TYPE NAME or property list TYPE TYPE NAME");
+            }
+        }
+        if (!ended) throw Error(cat(where, ": its PLY header has no end_header line"));
         if (claimed > size) tooMany(claimed, "elements");
     } else if (ext == ".stl") {
         char head[84] = {};

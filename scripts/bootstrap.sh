@@ -2,7 +2,7 @@
 # Penumbra's set-up on a fresh Debian 12 / Ubuntu machine: installs the Debian packages that are
 # missing, builds, then runs what was asked.
 #   bash scripts/bootstrap.sh cornell   # build, solve the Cornell box, render its final-gather picture
-#   bash scripts/bootstrap.sh test      # build, run every test (Release, then ASan+UBSan)
+#   bash scripts/bootstrap.sh test      # build, run every test (Release, then ASan+UBSan, then the fuzzers)
 #   bash scripts/bootstrap.sh bench     # build, measure the speed-accuracy trade of both Cornell scenes
 #   bash scripts/bootstrap.sh build     # build only
 set -euo pipefail
@@ -14,6 +14,7 @@ PACKAGES=(
   libtbb-dev nlohmann-json3-dev libcli11-dev libgtest-dev libnanoflann-dev libtinygltf-dev
   libglfw3-dev libimgui-dev libgl-dev libegl-dev libgl1-mesa-dri xvfb xauth
   libbenchmark-dev gnuplot-nox clang-format libjemalloc-dev libopenexr-dev libpng-dev
+  clang libclang-rt-14-dev
 )
 
 install_missing() {
@@ -70,6 +71,9 @@ case "${1:-}" in
       "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG"
     (cd build-sanitize && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
        ctest --output-on-failure -j 2 --timeout 1800 -LE slow)
+    # The scene loader and the mesh readers under libFuzzer (clang, ASan, UBSan), 30 s each from
+    # their seed corpora (tests/fuzz): a crash, hang, leak or runaway allocation fails.
+    bash scripts/fuzz.sh 30
     ;;
   *)
     echo "usage: bash scripts/bootstrap.sh cornell|test|bench|build" >&2
