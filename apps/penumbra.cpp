@@ -81,14 +81,18 @@ struct RenderCli {
     PhotonSettings photons;
 };
 
+// Whether `text` is a whole finite number (strtod reads "nan" and "inf"), put into `v`.
+bool finiteNumber(const std::string& text, double& v) {
+    char* end = nullptr;
+    v = std::strtod(text.c_str(), &end);
+    return end != text.c_str() && *end == 0 && std::isfinite(v);
+}
+
 // Any positive number: one short message, where CLI11's own check quotes the largest double.
 const CLI::Validator kPositive(
     [](std::string& text) {
-        char* end = nullptr;
-        const double v = std::strtod(text.c_str(), &end);
-        return end != text.c_str() && *end == 0 && v > 0 && std::isfinite(v)
-                   ? std::string()
-                   : cat("expected a positive number, got ", text);
+        double v = 0;
+        return finiteNumber(text, v) && v > 0 ? std::string() : cat("expected a positive number, got ", text);
     },
     "POSITIVE");
 
@@ -102,9 +106,8 @@ CLI::Validator inRange(double lo, double hi) {
     };
     return CLI::Validator(
         [=](std::string& value) {
-            char* end = nullptr;
-            const double v = std::strtod(value.c_str(), &end);
-            return end != value.c_str() && *end == 0 && std::isfinite(v) && v >= lo && v <= hi
+            double v = 0;
+            return finiteNumber(value, v) && v >= lo && v <= hi
                        ? std::string()
                        : cat("expected a number in [", text(lo), ", ", text(hi), "], got ", value);
         },
@@ -115,10 +118,8 @@ CLI::Validator inRange(double lo, double hi) {
 // 20,000 iterations) and strtod reads "inf". Added to every FLOAT option of `app` and its commands.
 const CLI::Validator kFinite(
     [](std::string& text) {
-        char* end = nullptr;
-        const double v = std::strtod(text.c_str(), &end);
-        return end != text.c_str() && *end == 0 && std::isfinite(v) ? std::string()
-                                                                    : cat("expected a finite number, got ", text);
+        double v = 0;
+        return finiteNumber(text, v) ? std::string() : cat("expected a finite number, got ", text);
     },
     "");
 

@@ -53,10 +53,9 @@ void checkMeshFile(const std::string& path, const std::string& ext, const std::s
             }
         }
     } else if (ext == ".off") {
-        // [ST][C][N][4][n]OFF, then the vertex, face and edge counts: OpenMesh's reader took counts
-        // out of other bytes (an 'OFF1' header asked for 16 GiB).
-        // As OpenMesh reads it: the keyword alone on the first line, the counts on the next (it took
-        // "OFF 0 0" as a header and the next line's numbers as counts).
+        // As OpenMesh reads it: the keyword [ST][C][N][4][n]OFF alone on the first line (an 'OFF1'
+        // header had it take counts out of other bytes and ask for 16 GiB; "OFF 0 0" had it take the
+        // next line's numbers as counts), the counts on the next.
         std::string word, line;
         std::getline(in, word);
         while (!word.empty() && std::isspace(static_cast<unsigned char>(word.back()))) word.pop_back();
@@ -80,15 +79,16 @@ void checkMeshFile(const std::string& path, const std::string& ext, const std::s
         // Each face: its corner count (3 or more) and that many vertex indices in range (a face of
         // "-01" corners grew OpenMesh's list until memory ran out).
         long long seen = 0;
-        for (size_t number = 0; seen < vertices + faces && std::getline(in, line); ++number) {
+        while (seen < vertices + faces && std::getline(in, line)) {
             std::istringstream words(line);
             std::string first;
             if (!(words >> first) || first[0] == '#') continue;
             if (seen++ < vertices) continue;
-            if (!whole(first) || std::atoll(first.c_str()) < 3 || std::atoll(first.c_str()) > 1000000)
+            const long long corners = whole(first) ? std::atoll(first.c_str()) : -1;
+            if (corners < 3 || corners > 1000000)
                 throw Error(cat(where, ": face ", seen - vertices, " has '", first.substr(0, 12),
                                 "' corners (expected a whole number of 3 or more)"));
-            for (long long k = std::atoll(first.c_str()); k > 0; --k) {
+            for (long long k = corners; k > 0; --k) {
                 std::string index;
                 if (!(words >> index) || !whole(index) || std::atoll(index.c_str()) >= vertices)
                     throw Error(cat(where, ": face ", seen - vertices, " has a vertex index out of range or missing (",

@@ -52,6 +52,20 @@ std::string readFile(const std::string& path, const std::string& what) {
     return ss.str();
 }
 
+// Context for error messages: "scene.json: objects[2] 'floor': vertices: ..."
+struct Where {
+    std::string file, path;
+    Where at(const std::string& key) const { return {file, path.empty() ? key : path + "." + key}; }
+    Where index(size_t i, const std::string& name = "") const {
+        return {file, cat(path, "[", i, "]", name.empty() ? "" : " '" + name + "'")};
+    }
+    [[noreturn]] void fail(const std::string& what) const {
+        throw Error(cat(file, ": ", path.empty() ? "" : path + ": ", what));
+    }
+};
+
+bool ignoredKey(const std::string& key) { return key == "comment" || (!key.empty() && key[0] == '_'); }
+
 // The first key that an object of `text` (JSON the parser accepted) holds twice, with the lines of
 // both, as "key 'white' on lines 3 and 7"; empty if none. The parser keeps the last silently: two
 // "white" materials, or a second "objects": [] that emptied the scene.
@@ -83,27 +97,12 @@ std::string duplicateKey(const std::string& text) {
             if (!stack.empty() && stack.back().object && stack.back().expectKey) {
                 stack.back().expectKey = false;
                 const auto [it, fresh] = stack.back().keys.emplace(value, at);
-                if (!fresh && value != "comment" && value.rfind("_", 0) != 0)
-                    return cat("key '", value, "' on lines ", it->second, " and ", at);
+                if (!fresh && !ignoredKey(value)) return cat("key '", value, "' on lines ", it->second, " and ", at);
             }
         }
     }
     return "";
 }
-
-// Context for error messages: "scene.json: objects[2] 'floor': vertices: ..."
-struct Where {
-    std::string file, path;
-    Where at(const std::string& key) const { return {file, path.empty() ? key : path + "." + key}; }
-    Where index(size_t i, const std::string& name = "") const {
-        return {file, cat(path, "[", i, "]", name.empty() ? "" : " '" + name + "'")};
-    }
-    [[noreturn]] void fail(const std::string& what) const {
-        throw Error(cat(file, ": ", path.empty() ? "" : path + ": ", what));
-    }
-};
-
-bool ignoredKey(const std::string& key) { return key == "comment" || (!key.empty() && key[0] == '_'); }
 
 // The scene JSON as it bears on a solve: without the camera and the ignored keys ("_..." and "comment"), for
 // Scene::fingerprint in nlohmann's canonical form (keys sorted, numbers as parsed).
