@@ -96,8 +96,11 @@ void checkMeshFile(const std::string& path, const std::string& ext, const std::s
             }
         }
     } else if (ext == ".ply") {
-        // The header, line by line, as the format defines it: OpenMesh's reader looped forever on
-        // a header with a misspelt keyword and no end_header (found by tests/fuzz).
+        // The header, line by line, as the format defines it: OpenMesh's reader reads it word by
+        // word whatever the lines, and loops forever once the words run out before an end_header
+        // (found by tests/fuzz: a misspelt keyword; a property line of four words, whose last ones
+        // it took for the next line's keyword and swallowed end_header with). So each line must hold
+        // exactly the words OpenMesh takes from it.
         uintmax_t claimed = 0;
         bool ended = false, elementSeen = false;
         std::string line;
@@ -111,6 +114,11 @@ void checkMeshFile(const std::string& path, const std::string& ext, const std::s
                                   keyword != "element" && keyword != "property" && keyword != "end_header")
                 throw Error(cat(where, " line ", number, ": not a PLY header line: '", line.substr(0, 40), "'"));
             ended = keyword == "end_header";
+            // Words OpenMesh would take for the header's own keywords: only where they belong.
+            auto header = [](const std::string& t) {
+                return t == "ply" || t == "format" || t == "comment" || t == "obj_info" || t == "element" ||
+                       t == "property" || t == "end_header";
+            };
             auto bad = [&](const char* what) {
                 throw Error(cat(where, " line ", number, ": ", what, ": '", line.substr(0, 40), "'"));
             };
@@ -120,8 +128,11 @@ void checkMeshFile(const std::string& path, const std::string& ext, const std::s
                     if (t == k) return true;
                 return false;
             };
-            std::string a, b, c, rest;
-            if (keyword == "format") {
+            std::string a, b, c, name, rest;
+            if (keyword == "obj_info") {
+                while (words >> a)
+                    if (header(a)) bad("an obj_info line holding a header keyword");
+            } else if (keyword == "format") {
                 if (!(words >> a >> b) || (a != "ascii" && a != "binary_little_endian" && a != "binary_big_endian") ||
                     b != "1.0" || words >> rest)
                     bad("expected format ascii, binary_little_endian or binary_big_endian, version 1.0");
@@ -134,8 +145,9 @@ void checkMeshFile(const std::string& path, const std::string& ext, const std::s
             } else if (keyword == "property") {
                 if (!elementSeen) bad("a property before any element (OpenMesh crashed on it)");
                 const bool list = words >> a && a == "list";
-                if (list ? !(words >> b >> c >> rest) || !scalar(b) || !scalar(c) : !scalar(a) || !(words >> b))
+                if (list ? !(words >> b >> c >> name) || !scalar(b) || !scalar(c) : !scalar(a) || !(words >> name))
                     bad("expected property TYPE NAME or property list TYPE TYPE NAME");
+                if (words >> rest || header(name)) bad("expected property TYPE NAME or property list TYPE TYPE NAME");
             }
         }
         if (!ended) throw Error(cat(where, ": its PLY header has no end_header line"));

@@ -149,6 +149,13 @@ TEST(CliErrors, HostileFilesAreRefusedByName) {
     test::writeText("negative.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n");
     expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "negative.obj"})"),
                   {"negative.obj", "line 4", "index -4 is out of range"});
+    // A property line of four words: OpenMesh's header reader took the last two for the next
+    // keyword, swallowed end_header and looped forever (found by tests/fuzz).
+    test::writeText("words.ply",
+                    "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x y z\nelement face 1\n"
+                    "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "words.ply"})"),
+                  {"words.ply", "line 4", "expected property TYPE NAME"});
     std::string stl(84, '\0');
     stl[83] = char(0x80);  // 2^31 triangles in 84 bytes
     test::writeText("claims.stl", stl);
