@@ -72,8 +72,8 @@ case "${1:-}" in
     (cd build-sanitize && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
        ctest --output-on-failure -j 2 --timeout 1800 -LE slow)
     # The scene loader and the mesh readers under libFuzzer (clang, ASan, UBSan), every input of
-    # their seed corpora (tests/fuzz) and then 50,000 more from a fixed seed (about 30 s each): a
-    # crash, hang, leak or runaway allocation fails, and the same inputs are tried on every machine.
+    # their seed corpora (tests/fuzz) and then 50,000 more from a fixed seed (10-30 s each): a
+    # crash, hang, leak or runaway allocation fails.
     bash scripts/fuzz.sh --runs 50000
     ;;
   *)

@@ -4,8 +4,10 @@
 # excess memory fails, and the input that did it is left in build-fuzz/ (crash-*, timeout-*,
 # leak-*, oom-*) to become a regression input in tests/fuzz/corpus/.
 #   bash scripts/fuzz.sh [SECONDS]   # explore for SECONDS (default 30) from a random seed
-#   bash scripts/fuzz.sh --runs N    # N inputs from seed 1: the same inputs on every machine, so
-#                                    # the test command passes or fails as it did where it was run
+#   bash scripts/fuzz.sh --runs N    # N inputs from seed 1, a bounded and nearly repeatable run for
+#                                    # the test command (not bit-repeatable: the inputs kept varied by
+#                                    # about 10% between runs of one binary); long random runs of this
+#                                    # script before a commit are what keep it from finding new faults
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if [[ ${1:-} == --runs ]]; then
