@@ -21,6 +21,10 @@ std::string cat(const Parts&... parts) {
     return out.str();
 }
 
+// A number as the shortest text that reads back to it ("1.0000001", not the stream's "1"), for
+// messages that compare a value with a limit it barely misses.
+std::string exact(double v);
+
 [[noreturn]] void checkFailed(const char* file, int line, const std::string& what);
 
 }  // namespace penumbra

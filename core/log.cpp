@@ -1,6 +1,7 @@
 #include "core/log.h"
 
 #include <atomic>
+#include <charconv>
 #include <cstdio>
 #include <mutex>
 
@@ -18,6 +19,12 @@ void logMessage(LogLevel level, const std::string& message) {
     static const char* kTags[] = {"debug", "info", "warning", "error"};
     std::lock_guard<std::mutex> lock(g_mutex);
     std::fprintf(stderr, "penumbra: %s: %s\n", kTags[static_cast<int>(level)], message.c_str());
+}
+
+std::string exact(double v) {
+    char text[32];
+    const auto end = std::to_chars(text, text + sizeof text, v).ptr;
+    return std::string(text, end);
 }
 
 void checkFailed(const char* file, int line, const std::string& what) {

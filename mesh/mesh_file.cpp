@@ -5,6 +5,7 @@
 #include <OpenMesh/Core/System/omstream.hh>
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -38,11 +39,27 @@ void checkMeshFile(const std::string& path, const std::string& ext, const std::s
     auto tooMany = [&](uintmax_t claimed, const std::string& what) {
         throw Error(cat(where, " claims ", claimed, " ", what, " in ", size, " bytes: it is damaged or cut short"));
     };
+    // A vertex's coordinates, each a finite number (OpenMesh read "nan" and dropped every face
+    // touching it, and the file was refused as holding no faces).
+    auto checkCoordinates = [&](std::istringstream& words, const std::string& at) {
+        for (int k = 0; k < 3; ++k) {
+            std::string token;
+            char* end = nullptr;
+            if (!(words >> token)) throw Error(cat(where, at, ": a vertex needs three coordinates"));
+            const double v = std::strtod(token.c_str(), &end);
+            if (*end != '\0' || !std::isfinite(v))
+                throw Error(cat(where, at, ": vertex coordinate '", token.substr(0, 24), "' is not a finite number"));
+        }
+    };
     if (ext == ".obj") {
         std::string line;
         long long vertices = 0;
         for (size_t number = 1; std::getline(in, line); ++number) {
-            if (line.size() > 1 && line[0] == 'v' && (line[1] == ' ' || line[1] == '\t')) ++vertices;
+            if (line.size() > 1 && line[0] == 'v' && (line[1] == ' ' || line[1] == '\t')) {
+                ++vertices;
+                std::istringstream words(line.substr(2));
+                checkCoordinates(words, cat(" line ", number));
+            }
             if (line.size() < 2 || line[0] != 'f' || (line[1] != ' ' && line[1] != '\t')) continue;
             std::istringstream tokens(line.substr(2));
             for (std::string token; tokens >> token;) {
@@ -83,7 +100,11 @@ void checkMeshFile(const std::string& path, const std::string& ext, const std::s
             std::istringstream words(line);
             std::string first;
             if (!(words >> first) || first[0] == '#') continue;
-            if (seen++ < vertices) continue;
+            if (seen++ < vertices) {
+                std::istringstream coordinates(line);
+                checkCoordinates(coordinates, cat(": vertex ", seen - 1));
+                continue;
+            }
             const long long corners = whole(first) ? std::atoll(first.c_str()) : -1;
             if (corners < 3 || corners > 1000000)
                 throw Error(cat(where, ": face ", seen - vertices, " has '", first.substr(0, 12),

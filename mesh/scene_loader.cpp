@@ -1,5 +1,6 @@
 // Scene JSON -> Scene, with every check the contract asks for. Each error names the file, the
 // object (by index and name) or field, and what was expected; nothing is written before this ends.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -165,13 +166,14 @@ Rgb rgb(const Json& j, const Where& w) {
 Rgb unitRgb(const Json& j, const Where& w) {
     const Rgb v = rgb(j, w);
     for (int c = 0; c < 3; ++c)
-        if (v[c] < 0 || v[c] > 1) w.fail(cat("each channel must lie in [0, 1], got ", v[c]));
+        if (v[c] < 0 || v[c] > 1) w.fail(cat("each channel must lie in [0, 1], got ", exact(v[c])));
     return v;
 }
 
 Material parseMaterial(const std::string& name, const Json& j, const Where& w) {
     Material m;
     m.name = name;
+    if (!j.is_object()) w.fail(cat("expected a material object such as {\"type\": \"diffuse\", \"reflectance\": 0.5}, got a ", j.type_name()));
     const Json& type = require(j, "type", w);
     if (!type.is_string()) w.at("type").fail("expected a string");
     const std::string t = type.get<std::string>();
@@ -351,9 +353,16 @@ Scene loadScene(const std::string& path) {
             cat(path, ":", line, ":", col, ": malformed JSON: ", p == std::string::npos ? what : what.substr(p)));
     } catch (const Json::out_of_range& e) {
         // The parser's only range error: a literal beyond double precision, such as 1e999.
+        // The parser gives no position for it: the first line holding the literal it names.
         std::string what = e.what();
         const auto p = what.find("number overflow");
-        throw Error(cat(path, ": malformed JSON: ", p == std::string::npos ? what : what.substr(p),
+        std::string where = path;
+        if (const auto q = what.find("parsing '"); q != std::string::npos) {
+            const std::string literal = what.substr(q + 9, what.find('\'', q + 9) - q - 9);
+            if (const auto at = text.find(literal); !literal.empty() && at != std::string::npos)
+                where = cat(path, ":", 1 + std::count(text.begin(), text.begin() + long(at), '\n'));
+        }
+        throw Error(cat(where, ": malformed JSON: ", p == std::string::npos ? what : what.substr(p),
                         " (numbers must be finite)"));
     }
     if (const std::string twice = duplicateKey(text); !twice.empty())

@@ -176,6 +176,17 @@ TEST(CliErrors, HostileValuesAreRefusedByName) {
                       R"(, "camera": {"position": [0,0,5], "look_at": [0,0,0], "up": [0,1,0], "fov_y_deg": 40,
                           "resolution": [4294967328, 32]}})"),
                   {"camera.resolution", "got 4294967328x32"});
+    // Messages that said too little: a value barely out of range printed rounded into range, a
+    // material that is not an object, a literal past double precision with no line.
+    expectRefused(sceneWith(R"("w": {"type": "diffuse", "reflectance": [1.0000001, 0.5, 0.5]})", ""),
+                  {"materials.w.reflectance", "got 1.0000001"});
+    expectRefused(sceneWith(R"("w": 3)", ""), {"materials.w", "expected a material object", "got a number"});
+    expectRefused(cat(R"({"materials": {)", kLamp, R"(,
+        "w": {"type": "diffuse", "reflectance": 1e400}}, "objects": []})"),
+                  {":2: malformed JSON", "1e400"});
+    test::writeText("nan.obj", "v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n");
+    expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "nan.obj"})"),
+                  {"nan.obj", "line 2", "'nan' is not a finite number"});
     // Options: numbers must be finite, thread counts bounded.
     expectRefused(sceneWith("", ""), {"--tolerance", "got nan"}, "--tolerance nan");
     expectRefused(sceneWith("", ""), {"--ff-noise", "expected a number in [1e-06, 1], got nan"}, "--ff-noise nan");
