@@ -219,9 +219,9 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
     outputs.write("report.json",
                   [&](const std::string& path) { writeFileAtomic(path, reportJson(scene, r, peakMemoryBytes())); });
     outputs.commit();
-    const Rgb& e = r.power.totalEmitted;
-    logInfo("wrote ", s.out, ": ", r.patches.size(), " patches, emitted ", e.sum(), " W, absorbed ",
-            r.power.totalAbsorbed.sum(), " W, escaped ", r.power.escaped.sum(), " W");
+    const double m2 = scene.metresPerUnit * scene.metresPerUnit;  // inside units to m^2 and W
+    logInfo("wrote ", s.out, ": ", r.patches.size(), " patches, emitted ", r.power.totalEmitted.sum() * m2,
+            " W, absorbed ", r.power.totalAbsorbed.sum() * m2, " W, escaped ", r.power.escaped.sum() * m2, " W");
     return 0;
 }
 
@@ -237,7 +237,7 @@ std::pair<int, int> parseResolution(const std::string& text) {
 Camera cameraFor(const Scene& scene, const RenderCli& c) {
     Camera camera = scene.camera;
     if (!c.camera.empty()) {
-        camera = parseCamera(c.camera, scene.unitScale, "--camera");
+        camera = parseCamera(c.camera, scene, "--camera");
     } else if (!scene.hasCamera) {
         throw Error(
             cat(scene.path,
@@ -340,7 +340,7 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     const std::string list = (out.parent_path() / orbitList).string();
     if (c.orbit > 0)
         outputs.write(orbitList, [&](const std::string& path) {
-            writeFileAtomic(path, orbitJson(cameras, paths, scene.unitScale));
+            writeFileAtomic(path, orbitJson(cameras, paths, scene.sceneUnit()));
         });
     outputs.commit();
     if (c.orbit > 0) {
@@ -381,7 +381,8 @@ int runExport(const std::string& dir, const std::string& out, std::string format
         throw Error(cat("--format: expected gltf or ply (or an --out ending in .glb, .gltf or .ply), got '",
                         format.empty() ? ext : format, "'"));
     const SolveResult stored = readSolution((std::filesystem::path(dir) / "solution.bin").string());
-    const ExportMesh mesh = exportMesh(stored.patches, stored.corners);
+    ExportMesh mesh = exportMesh(stored.patches, stored.corners);
+    for (auto& p : mesh.positions) p *= stored.metresPerUnit;  // metres, whatever the scene's size
     const double exposure = exportExposure(mesh, stops);
     const std::string parent = std::filesystem::path(out).parent_path().string();
     if (!parent.empty()) ensureDirectory(parent);
@@ -414,8 +415,10 @@ int runReference(ReferenceCli& c, const CommonOptions& common) {
     const SceneTracer tracer(scene, patches);
     if (!tracer.hasEmitters()) throw Error(cat(c.scene, ": no object emits light: every radiosity is zero"));
     c.settings.seed = common.seed;
+    ObjectReferenceSettings inside = c.settings;  // --min-area in the scene's inside units
+    inside.minArea /= scene.metresPerUnit * scene.metresPerUnit;
     Timer timer;
-    const std::vector<ObjectEstimate> estimates = pathObjectRadiosity(tracer, c.settings);
+    const std::vector<ObjectEstimate> estimates = pathObjectRadiosity(tracer, inside);
     const double seconds = timer.seconds();
     int64_t points = 0;
     double worst = 0;

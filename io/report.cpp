@@ -58,23 +58,25 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
         absorbed[o] += r.power.absorbed[i];
         ++patchCount[o];
     }
+    // Inside units to m^2 and W (Scene::metresPerUnit; 1 for all but the tiniest and largest scenes).
+    const double m2 = scene.metresPerUnit * scene.metresPerUnit;
     Json report;
     Json& objs = report["objects"];
     objs = Json::object();
     for (size_t o = 0; o < objects; ++o) {
         Json entry;
-        entry["area_m2"] = area[o];
+        entry["area_m2"] = area[o] * m2;
         entry["radiosity_mean"] = rgbJson(radiosity[o]);
-        entry["emitted_power_w"] = rgbJson(emitted[o]);
-        entry["absorbed_power_w"] = rgbJson(absorbed[o]);
+        entry["emitted_power_w"] = rgbJson(emitted[o] * m2);
+        entry["absorbed_power_w"] = rgbJson(absorbed[o] * m2);
         entry["patches"] = patchCount[o];
         // Ray-cast form factors: the estimated standard error of radiosity_mean over it (solve.h).
         if (r.objectNoise.size() == objects) entry["relative_error_estimate"] = r.objectNoise[o];
         objs[scene.objects[o].name] = entry;
     }
-    report["totals"] = {{"emitted_power_w", rgbJson(r.power.totalEmitted)},
-                        {"absorbed_power_w", rgbJson(r.power.totalAbsorbed)},
-                        {"escaped_power_w", rgbJson(r.power.escaped)}};
+    report["totals"] = {{"emitted_power_w", rgbJson(r.power.totalEmitted * m2)},
+                        {"absorbed_power_w", rgbJson(r.power.totalAbsorbed * m2)},
+                        {"escaped_power_w", rgbJson(r.power.escaped * m2)}};
     report["solver"] = {
         {"name", r.solverName},
         {"patches", r.patches.size()},
@@ -126,7 +128,8 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
                               {"seconds_so_far", round.secondsSoFar}});
         report["solver"]["refinement"] = rounds;
     }
-    report["scene"] = {{"file", scene.path}, {"unit_scale", scene.unitScale}};
+    report["scene"] = {
+        {"file", scene.path}, {"unit_scale", scene.unitScale}, {"inside_metres_per_unit", scene.metresPerUnit}};
     // How the result was made: every setting of the solve, and the seed (a rerun with these gives
     // the same report, whatever the thread count).
     SolveOptions o = r.options;
@@ -155,7 +158,7 @@ std::string objectReferenceJson(const Scene& scene, const std::vector<ObjectEsti
         const ObjectEstimate& e = estimates[o];
         if (e.samples == 0) continue;
         points += e.samples;
-        objs[scene.objects[o].name] = {{"area_m2", e.area},
+        objs[scene.objects[o].name] = {{"area_m2", e.area * scene.metresPerUnit * scene.metresPerUnit},
                                        {"radiosity_mean", rgbJson(e.radiosity)},
                                        {"std_error", rgbJson(e.stdError)},
                                        {"relative_error", e.relativeError},

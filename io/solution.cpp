@@ -1,5 +1,6 @@
 #include "io/solution.h"
 
+#include <cmath>
 #include <cstring>
 #include <fstream>
 
@@ -12,8 +13,10 @@ namespace {
 // Version 02 adds the corner values; version 01 files (without them) are still read, their corners
 // interpolated from the display values as they were shown when written. Version 03 adds the indirect
 // irradiance per corner (SolveResult::indirect) after the patches, a flag and then the values; files
-// of 01 and 02 are read without it (their final gather gathers).
-constexpr char kMagic[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '3'};
+// of 01 and 02 are read without it (their final gather gathers). Version 04 ends with the scene's
+// inside unit in metres (SolveResult::metresPerUnit, 1 in older files), for export in metres.
+constexpr char kMagic[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '4'};
+constexpr char kMagic03[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '3'};
 constexpr char kMagic02[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '2'};
 constexpr char kMagic01[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '1'};
 
@@ -73,6 +76,7 @@ void writeSolution(const std::string& path, const SolveResult& s) {
     if (indirect)
         for (const auto& corners : s.indirect)
             for (const Rgb& c : corners) w.put(c);
+    w.put(s.metresPerUnit);
     writeFileAtomic(path, w.bytes);
 }
 
@@ -82,7 +86,8 @@ SolveResult readSolution(const std::string& path) {
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     const bool v01 = bytes.size() >= 8 && std::memcmp(bytes.data(), kMagic01, 8) == 0;
     const bool v02 = bytes.size() >= 8 && std::memcmp(bytes.data(), kMagic02, 8) == 0;
-    if (bytes.size() < 8 || (!v01 && !v02 && std::memcmp(bytes.data(), kMagic, 8) != 0))
+    const bool v03 = bytes.size() >= 8 && std::memcmp(bytes.data(), kMagic03, 8) == 0;
+    if (bytes.size() < 8 || (!v01 && !v02 && !v03 && std::memcmp(bytes.data(), kMagic, 8) != 0))
         throw Error(cat(path, ": not a Penumbra solution file (or from an incompatible version)"));
     Reader r{bytes, path, 8};
     SolveResult s;
@@ -116,6 +121,11 @@ SolveResult readSolution(const std::string& path) {
         s.indirect.resize(n);
         for (auto& corners : s.indirect)
             for (Rgb& c : corners) c = r.rgb();
+    }
+    if (!v01 && !v02 && !v03) {
+        s.metresPerUnit = r.get<double>();
+        if (!(s.metresPerUnit > 0) || !std::isfinite(s.metresPerUnit))
+            throw Error(cat(path, ": solution file is damaged (its unit)"));
     }
     if (r.at != bytes.size())
         throw Error(cat(path, ": solution file is damaged (", bytes.size() - r.at, " bytes too many)"));

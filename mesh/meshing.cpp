@@ -282,7 +282,7 @@ int patchTarget(const Scene& scene, const MeshingOptions& options) {
 
 PatchSet meshScene(const Scene& scene, const MeshingOptions& options) {
     const double area = sceneArea(scene);
-    double h = options.patchSize;
+    double h = options.patchSize / scene.metresPerUnit;  // --patch-size is in metres
     if (!(h > 0)) {
         if (options.targetPatches < 1) throw Error("--patches must be at least 1");
         h = std::sqrt(area / patchTarget(scene, options));

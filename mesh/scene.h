@@ -57,8 +57,15 @@ struct Camera {
 };
 
 struct Scene {
-    std::string path;  // the scene file, as given
-    double unitScale = 1;
+    std::string path;      // the scene file, as given
+    double unitScale = 1;  // metres per scene unit, as the file gives it
+    // Lengths inside are held in units of this many metres: 1 for scenes from a millimetre to a
+    // thousand kilometres across, else the power of two that makes the scene half a unit to one unit
+    // across (exact: every length is the one of the same scene at a normal size times a power of
+    // two). Tolerances and ray offsets then follow the scene's size, and a scene of 1e-30 m solves
+    // and renders as it does at 1 m. Areas and powers are converted back to m^2 and W at the
+    // report, exported positions to metres.
+    double metresPerUnit = 1;
     std::vector<Material> materials;
     std::vector<SceneObject> objects;
     bool hasCamera = false;
@@ -69,6 +76,8 @@ struct Scene {
     uint64_t fingerprint = 0;
     uint64_t fileFingerprint = 0;  // hash of the scene file's and mesh files' bytes (the bench's caches)
 
+    // Inside lengths per scene unit: what a camera given in scene units is multiplied by.
+    double sceneUnit() const { return unitScale / metresPerUnit; }
     bool hasEmitter() const;
     bool hasSpecular() const;
     const Material& materialOf(const SceneObject& o) const { return materials[size_t(o.material)]; }
@@ -77,7 +86,7 @@ struct Scene {
 // Reads and validates a scene file. Throws Error naming the file, object or field on bad input.
 Scene loadScene(const std::string& path);
 
-// Parses a camera given on the command line as JSON ({"position": ..., ...}), in scene units.
-Camera parseCamera(const std::string& json, double unitScale, const std::string& where);
+// Parses a camera given on the command line as JSON ({"position": ..., ...}), in the scene's units.
+Camera parseCamera(const std::string& json, const Scene& scene, const std::string& where);
 
 }  // namespace penumbra

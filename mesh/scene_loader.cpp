@@ -173,7 +173,9 @@ Rgb unitRgb(const Json& j, const Where& w) {
 Material parseMaterial(const std::string& name, const Json& j, const Where& w) {
     Material m;
     m.name = name;
-    if (!j.is_object()) w.fail(cat("expected a material object such as {\"type\": \"diffuse\", \"reflectance\": 0.5}, got a ", j.type_name()));
+    if (!j.is_object())
+        w.fail(cat("expected a material object such as {\"type\": \"diffuse\", \"reflectance\": 0.5}, got a ",
+                   j.type_name()));
     const Json& type = require(j, "type", w);
     if (!type.is_string()) w.at("type").fail("expected a string");
     const std::string t = type.get<std::string>();
@@ -233,18 +235,21 @@ Eigen::Affine3d parseTransform(const Json& j, const Where& w) {
     return t;
 }
 
-void checkCoordinate(const Vec3& p, const Where& w) {
-    if (p.cwiseAbs().maxCoeff() > kAbsurdMetres)
-        w.fail(cat("coordinate (", p.x(), ", ", p.y(), ", ", p.z(), ") m lies more than ", kAbsurdMetres,
+// `p` in inside units of `metres` metres each (Scene::metresPerUnit).
+void checkCoordinate(const Vec3& p, double metres, const Where& w) {
+    if (p.cwiseAbs().maxCoeff() * metres > kAbsurdMetres) {
+        const Vec3 m = p * metres;
+        w.fail(cat("coordinate (", m.x(), ", ", m.y(), ", ", m.z(), ") m lies more than ", kAbsurdMetres,
                    " m from the origin: check unit_scale"));
+    }
 }
 
-std::vector<Vec3> polygon(const Json& j, size_t count, const Eigen::Affine3d& toWorld, const Where& w) {
+std::vector<Vec3> polygon(const Json& j, size_t count, const Eigen::Affine3d& toWorld, double metres, const Where& w) {
     if (!j.is_array() || j.size() != count) w.fail(cat("expected an array of ", count, " vertices [x, y, z]"));
     std::vector<Vec3> v;
     for (size_t k = 0; k < count; ++k) {
         v.push_back(toWorld * vec3(j[k], w.index(k)));
-        checkCoordinate(v.back(), w.index(k));
+        checkCoordinate(v.back(), metres, w.index(k));
     }
     return v;
 }
@@ -273,14 +278,44 @@ void checkTriangle(const std::vector<Vec3>& v, const Where& w) {
     if (edge == 0 || area2 <= 1e-12 * edge * edge) w.fail("zero-area triangle: its vertices are collinear or coincide");
 }
 
-Camera parseCameraJson(const Json& j, double unitScale, const Where& w) {
+// Brings a scene far below a millimetre or above a thousand kilometres across to half a unit to one
+// unit across inside, by a power of two (Scene::metresPerUnit); refuses one whose areas in m^2
+// would leave double precision.
+void normaliseLengths(Scene& scene, const Where& top) {
+    Eigen::AlignedBox3d box;
+    for (const SceneObject& o : scene.objects) {
+        for (const Vec3& v : o.vertices) box.extend(v);
+        for (const Vec3& v : o.mesh.vertices) box.extend(v);
+        if (o.type == ShapeType::Sphere) {
+            const double r = o.radius * o.toWorld.linear().norm();  // at least the sphere's, at most 3x
+            box.extend(o.toWorld * o.center + Vec3::Constant(r));
+            box.extend(o.toWorld * o.center - Vec3::Constant(r));
+        }
+    }
+    const double across = box.diagonal().norm(), metres = across * scene.metresPerUnit;
+    if (!(metres >= 1e-100))
+        top.fail(cat("the scene is ", metres,
+                     " m across: below 1e-100 m its areas and powers leave double "
+                     "precision; check unit_scale"));
+    if (metres >= 0x1p-10 && metres <= 0x1p20) return;
+    const double s = std::ldexp(1.0, std::ilogb(across) + 1);  // inside: [0.5, 1) units across
+    const Eigen::Affine3d shrink(Eigen::Scaling(1 / s));
+    for (SceneObject& o : scene.objects) {
+        for (Vec3& v : o.vertices) v /= s;
+        for (Vec3& v : o.mesh.vertices) v /= s;
+        o.toWorld = shrink * o.toWorld;
+    }
+    scene.metresPerUnit *= s;
+}
+
+Camera parseCameraJson(const Json& j, const Scene& scene, const Where& w) {
     checkKeys(j, w, {"position", "look_at", "up", "fov_y_deg", "resolution"});
     Camera c;
-    c.position = unitScale * vec3(require(j, "position", w), w.at("position"));
-    c.lookAt = unitScale * vec3(require(j, "look_at", w), w.at("look_at"));
+    c.position = scene.sceneUnit() * vec3(require(j, "position", w), w.at("position"));
+    c.lookAt = scene.sceneUnit() * vec3(require(j, "look_at", w), w.at("look_at"));
     if (j.contains("up")) c.up = vec3(j["up"], w.at("up"));
     if (j.contains("fov_y_deg")) c.fovYDeg = number(j["fov_y_deg"], w.at("fov_y_deg"));
-    checkCoordinate(c.position, w.at("position"));
+    checkCoordinate(c.position, scene.metresPerUnit, w.at("position"));
     const Vec3 forward = c.lookAt - c.position;
     if (forward.norm() == 0) w.at("look_at").fail("look_at equals position: the camera has no direction");
     if (c.up.norm() == 0 || forward.normalized().cross(c.up.normalized()).norm() < 1e-6)
@@ -322,7 +357,7 @@ bool Scene::hasSpecular() const {
     return false;
 }
 
-Camera parseCamera(const std::string& text, double unitScale, const std::string& where) {
+Camera parseCamera(const std::string& text, const Scene& scene, const std::string& where) {
     Json j;
     try {
         j = Json::parse(text);
@@ -331,7 +366,7 @@ Camera parseCamera(const std::string& text, double unitScale, const std::string&
     } catch (const Json::out_of_range&) {  // a literal beyond double precision, such as 1e999
         throw Error(cat(where, ": a number beyond double precision (numbers must be finite)"));
     }
-    return parseCameraJson(j, unitScale, Where{where, ""});
+    return parseCameraJson(j, scene, Where{where, ""});
 }
 
 Scene loadScene(const std::string& path) {
@@ -378,6 +413,10 @@ Scene loadScene(const std::string& path) {
         scene.unitScale = number(root["unit_scale"], top.at("unit_scale"));
         if (!(scene.unitScale > 0)) top.at("unit_scale").fail("must be positive");
     }
+    // A unit far from a metre is taken out first as a power of two (Scene::metresPerUnit), so that
+    // the checks below see ordinary numbers (a unit_scale of 1e-300 made every quad "collinear").
+    if (scene.unitScale < 0x1p-40 || scene.unitScale > 0x1p40)
+        scene.metresPerUnit = std::ldexp(1.0, std::ilogb(scene.unitScale));
 
     const Json& mats = require(root, "materials", top);
     if (!mats.is_object()) top.at("materials").fail("expected an object mapping names to materials");
@@ -411,18 +450,18 @@ Scene loadScene(const std::string& path) {
             if (scene.materials[m].name == matName.get<std::string>()) o.material = int(m);
         if (o.material < 0) w.at("material").fail(cat("unknown material '", matName.get<std::string>(), "'"));
 
-        const Eigen::Affine3d scale(Eigen::Scaling(scene.unitScale));
+        const Eigen::Affine3d scale(Eigen::Scaling(scene.sceneUnit()));
         o.toWorld = scale * (j.contains("transform") ? parseTransform(j["transform"], w.at("transform"))
                                                      : Eigen::Affine3d::Identity());
         if (t == "quad") {
             checkKeys(j, w, {"name", "type", "material", "vertices", "transform"});
             o.type = ShapeType::Quad;
-            o.vertices = polygon(require(j, "vertices", w), 4, o.toWorld, w.at("vertices"));
+            o.vertices = polygon(require(j, "vertices", w), 4, o.toWorld, scene.metresPerUnit, w.at("vertices"));
             checkQuad(o.vertices, w.at("vertices"));
         } else if (t == "triangle") {
             checkKeys(j, w, {"name", "type", "material", "vertices", "transform"});
             o.type = ShapeType::Triangle;
-            o.vertices = polygon(require(j, "vertices", w), 3, o.toWorld, w.at("vertices"));
+            o.vertices = polygon(require(j, "vertices", w), 3, o.toWorld, scene.metresPerUnit, w.at("vertices"));
             checkTriangle(o.vertices, w.at("vertices"));
         } else if (t == "sphere") {
             checkKeys(j, w, {"name", "type", "material", "center", "radius", "transform"});
@@ -430,7 +469,7 @@ Scene loadScene(const std::string& path) {
             o.center = vec3(require(j, "center", w), w.at("center"));
             o.radius = number(require(j, "radius", w), w.at("radius"));
             if (!(o.radius > 0)) w.at("radius").fail(cat("radius must be positive, got ", o.radius));
-            checkCoordinate(o.toWorld * o.center, w.at("center"));
+            checkCoordinate(o.toWorld * o.center, scene.metresPerUnit, w.at("center"));
             if (o.radius * scene.unitScale > kAbsurdMetres)
                 w.at("radius").fail("radius is absurdly large: check unit_scale");
         } else if (t == "mesh") {
@@ -442,7 +481,7 @@ Scene loadScene(const std::string& path) {
             o.mesh = readPolygonSoup(o.file, w.at("file").path);
             for (auto& v : o.mesh.vertices) {
                 v = o.toWorld * v;
-                checkCoordinate(v, w.at("file"));
+                checkCoordinate(v, scene.metresPerUnit, w.at("file"));
             }
             const std::string bytes = readFile(o.file, "mesh file");
             scene.fingerprint = fnv1a(bytes, scene.fingerprint);
@@ -453,9 +492,10 @@ Scene loadScene(const std::string& path) {
         scene.objects.push_back(std::move(o));
     }
     if (scene.objects.empty()) top.at("objects").fail("the scene is empty: it has no objects");
+    normaliseLengths(scene, top);
 
     if (root.contains("camera")) {
-        scene.camera = parseCameraJson(root["camera"], scene.unitScale, top.at("camera"));
+        scene.camera = parseCameraJson(root["camera"], scene, top.at("camera"));
         scene.hasCamera = true;
     }
     if (!scene.hasEmitter())

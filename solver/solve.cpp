@@ -518,7 +518,7 @@ void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveRes
     settings.visibilityRays = options.formFactors.visibilityRays;
     if (!(settings.minArea > 0)) {
         const double h = options.meshing.patchSize > 0
-                             ? options.meshing.patchSize
+                             ? options.meshing.patchSize / scene.metresPerUnit
                              : std::sqrt(sceneArea(scene) / patchTarget(scene, options.meshing));
         settings.minArea = h * h;
     }
@@ -853,6 +853,7 @@ SolveResult solveScene(const Scene& scene, const SolveOptions& options, const St
     SolveResult r = solveUncounted(scene, options, observer);
     r.counters = countersSince(before);
     r.sceneFingerprint = scene.fingerprint;
+    r.metresPerUnit = scene.metresPerUnit;
     return r;
 }
 

@@ -75,7 +75,7 @@ struct SolveResult {
     // vertex_radiosity.h), W/m^2: what the final gather reads at the points it shades. Empty without
     // small sources or a matrix (the hierarchy).
     CornerValues indirect;
-    PowerBalance power;
+    PowerBalance power;  // in the scene's inside unit: W = power x metresPerUnit^2 (1 but at extreme sizes)
     double secondsMeshing = 0, secondsFormFactors = 0, secondsSpecular = 0, secondsSolve = 0, secondsVertices = 0;
     double rowSumMin = 0, rowSumMax = 0;  // front-face row sums as made (closed scenes: 1 within error)
     bool closedScene = false;             // no ray from any front face leaves the scene (sceneClosure)
@@ -84,6 +84,7 @@ struct SolveResult {
     std::vector<double> objectNoise;
     std::vector<RefineRound> refinement;  // empty without --refine; else the first solve, then each round
     CounterValues counters;               // what this solve did: every named counter's change over it
+    double metresPerUnit = 1;             // the scene's inside unit (Scene::metresPerUnit): lengths here are in it
 };
 
 SolveResult solveScene(const Scene& scene, const SolveOptions& options, const StepObserver& observer = {});

@@ -77,14 +77,16 @@ TEST(Extremes, ReflectanceZeroAndOneInAnOpenScene) {
 }
 
 TEST(Extremes, PatchesFromMicrometresToKilometres) {
-    // Form factors do not depend on scale; power scales with area.
-    for (double scale : {1e-6, 1e-3, 1.0, 1e4}) {
+    // Form factors do not depend on scale; power scales with area. Down to 1e-30 m (issue 15: a
+    // nanometre scene was 11% off, 1e-30 m black, as offsets were in metres); the solve's powers
+    // are in the scene's inside unit (Scene::metresPerUnit), W = inside x metresPerUnit^2.
+    for (double scale : {1e-30, 1e-12, 1e-9, 1e-6, 1e-3, 1.0, 1e4}) {
         const Scene scene =
             test::sceneFromJson(twoSquares(scale, R"({"type": "diffuse", "reflectance": 0.5})", kReceiverSquare));
         const SolveResult r = solve(scene, 100);
         EXPECT_NEAR(test::objectFormFactor(r, 1, 0), 0.19982, 0.005 * 0.19982) << "scale " << scale;
         const double emitted = kPi * scale * scale;
-        EXPECT_NEAR(r.power.totalEmitted[0], emitted, 1e-9 * emitted);
+        EXPECT_NEAR(r.power.totalEmitted[0] * r.metresPerUnit * r.metresPerUnit, emitted, 1e-9 * emitted);
         test::expectBalanceByRays(scene, r, 2e-3, 1024, cat("scale ", scale));
     }
 }

@@ -401,7 +401,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
                 if (keys.pressed(window, GLFW_KEY_E)) nav.edges = !nav.edges;
                 if (keys.pressed(window, GLFW_KEY_R)) nav.camera = nav.start;
                 if (keys.pressed(window, GLFW_KEY_P))
-                    std::printf("%s\n", cameraJson(nav.camera, scene.unitScale).c_str());
+                    std::printf("%s\n", cameraJson(nav.camera, scene.sceneUnit()).c_str());
                 if (keys.pressed(window, GLFW_KEY_EQUAL) || keys.pressed(window, GLFW_KEY_KP_ADD)) stops += 0.5f;
                 if (keys.pressed(window, GLFW_KEY_MINUS) || keys.pressed(window, GLFW_KEY_KP_SUBTRACT)) stops -= 0.5f;
                 if (keys.pressed(window, GLFW_KEY_ESCAPE)) glfwSetWindowShouldClose(window, GLFW_TRUE);
@@ -418,7 +418,8 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
             ImGui::Checkbox("fly mode (F, WASD)", &nav.fly);
             if (ImGui::Button("reset view (R)")) nav.camera = nav.start;
             ImGui::SameLine();
-            if (ImGui::Button("print camera (P)")) std::printf("%s\n", cameraJson(nav.camera, scene.unitScale).c_str());
+            if (ImGui::Button("print camera (P)"))
+                std::printf("%s\n", cameraJson(nav.camera, scene.sceneUnit()).c_str());
             if (ImGui::Button("final gather (G)")) startGather = true;
             if (progressive.running()) ImGui::Text("final gather: %d passes (move to go back)", progressive.passes());
             ImGui::End();
