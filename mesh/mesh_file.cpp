@@ -6,11 +6,13 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 #include "core/error.h"
 
@@ -24,6 +26,147 @@ using ReadMesh = OpenMesh::PolyMesh_ArrayKernelT<ReadTraits>;
 }  // namespace
 
 namespace {
+
+// A PLY file as OpenMesh reads it, refused where OpenMesh would hang, crash or take memory without
+// end. The header, line by line, as the format defines it: OpenMesh's reader reads it word by word
+// whatever the lines, and loops forever once the words run out before an end_header (found by
+// tests/fuzz: a misspelt keyword; a property line of four words, whose last ones it took for the
+// next line's keyword and swallowed end_header with). So each line must hold exactly the words
+// OpenMesh takes from it. Then the data, walked value by value: a face's list length a whole number
+// up to a million (a face of -1 corners ran OpenMesh out of memory), its vertex indices in range,
+// every value a finite number, and no element cut short.
+void checkPly(std::istream& in, uintmax_t size, const std::string& where) {
+    struct Property {
+        bool list = false;
+        std::string countType, type, name;
+    };
+    struct Element {
+        std::string name;
+        long long count = 0;
+        std::vector<Property> properties;
+    };
+    std::vector<Element> elements;
+    std::string format;
+    uintmax_t claimed = 0;
+    bool ended = false;
+    std::string line;
+    auto header = [](const std::string& t) {
+        return t == "ply" || t == "format" || t == "comment" || t == "obj_info" || t == "element" || t == "property" ||
+               t == "end_header";
+    };
+    auto bytes = [](const std::string& t) {
+        for (const auto& [names, n] : {std::pair<const char*, int>{" char uchar int8 uint8 ", 1},
+                                       {" short ushort int16 uint16 ", 2},
+                                       {" int uint float int32 uint32 float32 ", 4},
+                                       {" double float64 ", 8}})
+            if (std::string(names).find(" " + t + " ") != std::string::npos) return n;
+        return 0;
+    };
+    for (size_t number = 1; !ended && std::getline(in, line); ++number) {
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        std::istringstream words(line);
+        std::string keyword;
+        words >> keyword;
+        if (number == 1 ? keyword != "ply" : !header(keyword) || keyword == "ply")
+            throw Error(cat(where, " line ", number, ": not a PLY header line: '", line.substr(0, 40), "'"));
+        ended = keyword == "end_header";
+        auto bad = [&](const char* what) {
+            throw Error(cat(where, " line ", number, ": ", what, ": '", line.substr(0, 40), "'"));
+        };
+        std::string a, b, c, name, rest;
+        if (keyword == "obj_info") {
+            while (words >> a)
+                if (header(a)) bad("an obj_info line holding a header keyword");
+        } else if (keyword == "format") {
+            if (!(words >> a >> b) || (a != "ascii" && a != "binary_little_endian" && a != "binary_big_endian") ||
+                b != "1.0" || words >> rest)
+                bad("expected format ascii, binary_little_endian or binary_big_endian, version 1.0");
+            format = a;
+        } else if (keyword == "element") {
+            long long count = -1;
+            if (!(words >> a >> count) || count < 0 || words >> rest)
+                bad("expected element NAME COUNT, the count a whole number");
+            claimed += uintmax_t(count);
+            elements.push_back({a, count, {}});
+        } else if (keyword == "property") {
+            if (elements.empty()) bad("a property before any element (OpenMesh crashed on it)");
+            const bool list = words >> a && a == "list";
+            if (list ? !(words >> b >> c >> name) || !bytes(b) || !bytes(c) : !bytes(a) || !(words >> name))
+                bad("expected property TYPE NAME or property list TYPE TYPE NAME");
+            if (words >> rest || header(name)) bad("expected property TYPE NAME or property list TYPE TYPE NAME");
+            elements.back().properties.push_back(list ? Property{true, b, c, name} : Property{false, "", a, name});
+        }
+    }
+    if (!ended) throw Error(cat(where, ": its PLY header has no end_header line"));
+    if (format.empty()) throw Error(cat(where, ": its PLY header has no format line"));
+    if (claimed > size)
+        throw Error(cat(where, " claims ", claimed, " elements in ", size, " bytes: it is damaged or cut short"));
+
+    long long vertices = 0;
+    for (const Element& e : elements)
+        if (e.name == "vertex") vertices = e.count;
+    // One value of `type`: a token of ascii, or its bytes in the file's order.
+    const bool ascii = format == "ascii",
+               swap = (format == "binary_big_endian") != (__BYTE_ORDER__ == __ORDER_BIG_ENDIAN__);
+    std::string token;
+    auto value = [&](const std::string& type, const std::string& at) {
+        if (ascii) {
+            if (!(in >> token)) throw Error(cat(where, ": its data ends inside ", at));
+            char* end = nullptr;
+            const double v = std::strtod(token.c_str(), &end);
+            if (*end != '\0' || !std::isfinite(v))
+                throw Error(cat(where, ": ", at, ": '", token.substr(0, 24), "' is not a finite number"));
+            return v;
+        }
+        unsigned char raw[8] = {};
+        const int n = bytes(type);
+        if (!in.read(reinterpret_cast<char*>(raw), n)) throw Error(cat(where, ": its data ends inside ", at));
+        if (swap) std::reverse(raw, raw + n);
+        double v = 0;
+        auto as = [&](auto x) {
+            std::memcpy(&x, raw, sizeof x);
+            return double(x);
+        };
+        if (type == "char" || type == "int8")
+            v = as(int8_t());
+        else if (type == "uchar" || type == "uint8")
+            v = as(uint8_t());
+        else if (type == "short" || type == "int16")
+            v = as(int16_t());
+        else if (type == "ushort" || type == "uint16")
+            v = as(uint16_t());
+        else if (type == "int" || type == "int32")
+            v = as(int32_t());
+        else if (type == "uint" || type == "uint32")
+            v = as(uint32_t());
+        else if (type == "float" || type == "float32")
+            v = as(float());
+        else
+            v = as(double());
+        if (!std::isfinite(v)) throw Error(cat(where, ": ", at, ": a value that is not a finite number"));
+        return v;
+    };
+    for (const Element& e : elements)
+        for (long long k = 0; k < e.count; ++k)
+            for (const Property& p : e.properties) {
+                const std::string at = cat(e.name, " ", k);
+                if (!p.list) {
+                    value(p.type, at);
+                    continue;
+                }
+                const double n = value(p.countType, at);
+                if (n < 0 || n > 1e6 || n != std::floor(n))
+                    throw Error(cat(where, ": ", at, ": a list of ", n,
+                                    " entries (expected a whole number from 0 to 1,000,000)"));
+                const bool indices = e.name == "face" && (p.name == "vertex_indices" || p.name == "vertex_index");
+                for (long long m = 0; m < (long long)n; ++m) {
+                    const double index = value(p.type, at);
+                    if (indices && (index < 0 || index >= double(vertices) || index != std::floor(index)))
+                        throw Error(cat(where, ": ", at, ": vertex index ", index, " is out of range (", vertices,
+                                        " vertices)"));
+                }
+            }
+}
 
 // Refuses a mesh file whose header claims more elements than its bytes can hold (an OFF file of 60
 // bytes claiming 100,000 elements hung OpenMesh's reader; PLY and STL headers claiming 2^31 faces ran
@@ -117,62 +260,7 @@ void checkMeshFile(const std::string& path, const std::string& ext, const std::s
             }
         }
     } else if (ext == ".ply") {
-        // The header, line by line, as the format defines it: OpenMesh's reader reads it word by
-        // word whatever the lines, and loops forever once the words run out before an end_header
-        // (found by tests/fuzz: a misspelt keyword; a property line of four words, whose last ones
-        // it took for the next line's keyword and swallowed end_header with). So each line must hold
-        // exactly the words OpenMesh takes from it.
-        uintmax_t claimed = 0;
-        bool ended = false, elementSeen = false;
-        std::string line;
-        for (size_t number = 1; !ended && std::getline(in, line); ++number) {
-            if (!line.empty() && line.back() == '\r') line.pop_back();
-            std::istringstream words(line);
-            std::string keyword;
-            words >> keyword;
-            if (number == 1 ? keyword != "ply"
-                            : keyword != "format" && keyword != "comment" && keyword != "obj_info" &&
-                                  keyword != "element" && keyword != "property" && keyword != "end_header")
-                throw Error(cat(where, " line ", number, ": not a PLY header line: '", line.substr(0, 40), "'"));
-            ended = keyword == "end_header";
-            // Words OpenMesh would take for the header's own keywords: only where they belong.
-            auto header = [](const std::string& t) {
-                return t == "ply" || t == "format" || t == "comment" || t == "obj_info" || t == "element" ||
-                       t == "property" || t == "end_header";
-            };
-            auto bad = [&](const char* what) {
-                throw Error(cat(where, " line ", number, ": ", what, ": '", line.substr(0, 40), "'"));
-            };
-            auto scalar = [](const std::string& t) {
-                for (const char* k : {"char", "uchar", "short", "ushort", "int", "uint", "float", "double", "int8",
-                                      "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64"})
-                    if (t == k) return true;
-                return false;
-            };
-            std::string a, b, c, name, rest;
-            if (keyword == "obj_info") {
-                while (words >> a)
-                    if (header(a)) bad("an obj_info line holding a header keyword");
-            } else if (keyword == "format") {
-                if (!(words >> a >> b) || (a != "ascii" && a != "binary_little_endian" && a != "binary_big_endian") ||
-                    b != "1.0" || words >> rest)
-                    bad("expected format ascii, binary_little_endian or binary_big_endian, version 1.0");
-            } else if (keyword == "element") {
-                long long count = -1;
-                if (!(words >> a >> count) || count < 0 || words >> rest)
-                    bad("expected element NAME COUNT, the count a whole number");
-                claimed += uintmax_t(count);
-                elementSeen = true;
-            } else if (keyword == "property") {
-                if (!elementSeen) bad("a property before any element (OpenMesh crashed on it)");
-                const bool list = words >> a && a == "list";
-                if (list ? !(words >> b >> c >> name) || !scalar(b) || !scalar(c) : !scalar(a) || !(words >> name))
-                    bad("expected property TYPE NAME or property list TYPE TYPE NAME");
-                if (words >> rest || header(name)) bad("expected property TYPE NAME or property list TYPE TYPE NAME");
-            }
-        }
-        if (!ended) throw Error(cat(where, ": its PLY header has no end_header line"));
-        if (claimed > size) tooMany(claimed, "elements");
+        checkPly(in, size, where);
     } else if (ext == ".stl") {
         char head[84] = {};
         in.read(head, sizeof head);

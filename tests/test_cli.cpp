@@ -156,6 +156,12 @@ TEST(CliErrors, HostileFilesAreRefusedByName) {
                     "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
     expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "words.ply"})"),
                   {"words.ply", "line 4", "expected property TYPE NAME"});
+    // Its data: a face of -1 corners ran OpenMesh out of memory (found by tests/fuzz).
+    test::writeText("minus.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                 "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+                                 "end_header\n0 0 0\n1 0 0\n0 1 0\n-1 0 1 2\n");
+    expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "minus.ply"})"),
+                  {"minus.ply", "face 0: a list of -1 entries"});
     std::string stl(84, '\0');
     stl[83] = char(0x80);  // 2^31 triangles in 84 bytes
     test::writeText("claims.stl", stl);
