@@ -516,6 +516,7 @@ void solveHierarchical(const Scene& scene, const SolveOptions& options, SolveRes
     settings.solver = options.solverSettings;
     settings.seed = options.formFactors.seed;
     settings.visibilityRays = options.formFactors.visibilityRays;
+    settings.maxBytes = options.maxMemoryBytes > 0 ? options.maxMemoryBytes : availableMemoryBytes();
     if (!(settings.minArea > 0)) {
         const double h = options.meshing.patchSize > 0
                              ? options.meshing.patchSize / scene.metresPerUnit

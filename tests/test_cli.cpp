@@ -157,9 +157,10 @@ TEST(CliErrors, HostileFilesAreRefusedByName) {
     expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "words.ply"})"),
                   {"words.ply", "line 4", "expected property TYPE NAME"});
     // Its data: a face of -1 corners ran OpenMesh out of memory (found by tests/fuzz).
-    test::writeText("minus.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                                 "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
-                                 "end_header\n0 0 0\n1 0 0\n0 1 0\n-1 0 1 2\n");
+    test::writeText("minus.ply",
+                    "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                    "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+                    "end_header\n0 0 0\n1 0 0\n0 1 0\n-1 0 1 2\n");
     expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "minus.ply"})"),
                   {"minus.ply", "face 0: a list of -1 entries"});
     std::string stl(84, '\0');
@@ -195,6 +196,12 @@ TEST(CliErrors, HostileValuesAreRefusedByName) {
                   {"nan.obj", "line 2", "'nan' is not a finite number"});
     // Options: numbers must be finite, thread counts bounded.
     expectRefused(sceneWith("", ""), {"--tolerance", "got nan"}, "--tolerance nan");
+    expectRefused(sceneWith("", ""), {"--tolerance 0.01", "at most"}, "--tolerance 0.01");
+    // Every solver honours --max-memory: the hierarchy took 1.5 MiB under a bound of 1 KiB.
+    const std::string facing =
+        R"({"name": "r", "type": "quad", "material": "lamp", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]})";
+    expectRefused(sceneWith("", facing), {"the hierarchy's", "more than the 0.001024 MiB allowed (--max-memory)"},
+                  "--solver hierarchical --max-memory 0.000001");
     expectRefused(sceneWith("", ""), {"--ff-noise", "expected a number in [1e-06, 1], got nan"}, "--ff-noise nan");
     expectRefused(sceneWith("", ""), {"--patches", "expected a number in [1, 100000000], got abc"}, "--patches abc");
     const CommandResult exposure =

@@ -27,6 +27,9 @@ struct HierarchySettings {
     int visibilityRays = 4;       // per link; partly visible links get four times as many more
     CubatureSettings cubature{1e-3, 9, 5};
     int maxRounds = 12;  // refine-then-solve rounds
+    // Elements and links may take at most this many bytes (--max-memory; 0: no bound): past it after
+    // a refinement the solve stops with an Error saying what it took.
+    double maxBytes = 0;
     // The scene is closed, with no back face in sight (sceneClosure, ray_form_factors.h): each leaf's links, its own
     // and its ancestors', are scaled to carry all of its light, as every row of a closed scene does.
     bool closedScene = false;
