@@ -386,16 +386,20 @@ int runExport(const std::string& dir, const std::string& out, std::string format
     if (format != "gltf" && format != "ply")
         throw Error(cat("--format: expected gltf or ply (or an --out ending in .glb, .gltf or .ply), got '",
                         format.empty() ? ext : format, "'"));
+    const std::filesystem::path target(out);
+    const std::string name = target.filename().string();
+    OutputSet outputs(target.parent_path().string(), {name}, cat(".", name, ".lock"));
     const SolveResult stored = readSolution((std::filesystem::path(dir) / "solution.bin").string());
     ExportMesh mesh = exportMesh(stored.patches, stored.corners);
     for (auto& p : mesh.positions) p *= stored.metresPerUnit;  // metres, whatever the scene's size
     const double exposure = exportExposure(mesh, stops);
-    const std::string parent = std::filesystem::path(out).parent_path().string();
-    if (!parent.empty()) ensureDirectory(parent);
-    if (format == "gltf")
-        writeGltf(mesh, out, exposure);
-    else
-        writePly(mesh, out, exposure);
+    outputs.write(name, [&](const std::string& path) {
+        if (format == "gltf")
+            writeGltf(mesh, path, exposure);
+        else
+            writePly(mesh, path, exposure);
+    });
+    outputs.commit();
     logInfo("wrote ", out, ": ", mesh.positions.size(), " vertices, ", mesh.triangles.size(),
             " triangles, colours = ", format == "gltf" ? "min(1, " : "sRGB(", exposure, " x radiance)");
     return 0;
@@ -415,6 +419,9 @@ int runReference(ReferenceCli& c, const CommonOptions& common) {
     if (c.settings.minSamples > c.settings.maxSamples)
         throw Error(cat("--min-points ", c.settings.minSamples, " is above --max-points ", c.settings.maxSamples));
     const Scene scene = loadScene(c.scene);
+    const std::filesystem::path target(c.out);
+    const std::string name = target.filename().string();
+    OutputSet outputs(target.parent_path().string(), {name}, cat(".", name, ".lock"));
     MeshingOptions meshing;
     meshing.targetPatches = c.patches;
     const PatchSet patches = meshScene(scene, meshing);
@@ -432,9 +439,10 @@ int runReference(ReferenceCli& c, const CommonOptions& common) {
         points += e.samples;
         worst = std::max(worst, e.relativeError);
     }
-    if (!std::filesystem::path(c.out).parent_path().empty())
-        ensureDirectory(std::filesystem::path(c.out).parent_path().string());
-    writeFileAtomic(c.out, objectReferenceJson(scene, estimates, c.settings, seconds));
+    outputs.write(name, [&](const std::string& path) {
+        writeFileAtomic(path, objectReferenceJson(scene, estimates, c.settings, seconds));
+    });
+    outputs.commit();
     logInfo("wrote ", c.out, ": ", points, " points on ", scene.objects.size(), " objects in ", seconds,
             " s, largest standard error ", 100 * worst, "%");
     return 0;

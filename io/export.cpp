@@ -4,6 +4,7 @@
 
 #include <cstring>
 #include <filesystem>
+#include <sstream>
 
 #include "core/error.h"
 #include "io/atomic_file.h"
@@ -139,28 +140,21 @@ void writeGltf(const ExportMesh& mesh, const std::string& path, double exposure)
     model.scenes.push_back(scene);
     model.defaultScene = 0;
 
+    // Made in memory and written by the checked writer: tinygltf's own file writing did not check
+    // that the bytes reached the disk.
     const bool binary = std::filesystem::path(path).extension() != ".gltf";
-    const std::string temporary = temporarySibling(path);
+    std::ostringstream bytes;
     tinygltf::TinyGLTF writer;
-    if (!writer.WriteGltfSceneToFile(&model, temporary, true, true, !binary, binary)) {
-        std::filesystem::remove(temporary);
-        throw Error(cat(path, ": cannot write the glTF file"));
-    }
-    commitFile(temporary, path);
+    if (!writer.WriteGltfSceneToStream(&model, bytes, !binary, binary))
+        throw Error(cat(path, ": tinygltf could not make the glTF file"));
+    writeFileAtomic(path, bytes.str());
 }
 
 void writePly(const ExportMesh& mesh, const std::string& path, double exposure) {
     std::vector<std::array<unsigned char, 3>> colours;
     for (const Rgb& r : mesh.radiance)
         colours.push_back({srgb8(exposure * r[0]), srgb8(exposure * r[1]), srgb8(exposure * r[2])});
-    const std::string temporary = temporarySibling(path) + ".ply";  // OpenMesh picks the writer by extension
-    try {
-        writeColouredPly(temporary, mesh.positions, mesh.triangles, colours);
-    } catch (...) {
-        std::filesystem::remove(temporary);
-        throw;
-    }
-    commitFile(temporary, path);
+    writeFileAtomic(path, colouredPly(mesh.positions, mesh.triangles, colours));
 }
 
 }  // namespace penumbra

@@ -313,9 +313,8 @@ PolygonSoup readPolygonSoup(const std::string& path, const std::string& field) {
 
 namespace penumbra {
 
-void writeColouredPly(const std::string& path, const std::vector<Vec3>& vertices,
-                      const std::vector<std::array<int, 3>>& triangles,
-                      const std::vector<std::array<unsigned char, 3>>& colours) {
+std::string colouredPly(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
+                        const std::vector<std::array<unsigned char, 3>>& colours) {
     OpenMesh::PolyMesh_ArrayKernelT<> mesh;
     mesh.request_vertex_colors();
     std::vector<OpenMesh::VertexHandle> handles;
@@ -327,7 +326,9 @@ void writeColouredPly(const std::string& path, const std::vector<Vec3>& vertices
     }
     for (const auto& t : triangles) mesh.add_face(handles[size_t(t[0])], handles[size_t(t[1])], handles[size_t(t[2])]);
     OpenMesh::IO::Options options = OpenMesh::IO::Options::VertexColor | OpenMesh::IO::Options::Binary;
-    if (!OpenMesh::IO::write_mesh(mesh, path, options)) throw Error(cat(path, ": cannot write the PLY file"));
+    std::ostringstream bytes;
+    if (!OpenMesh::IO::write_mesh(mesh, bytes, ".ply", options)) throw Error("OpenMesh could not make the PLY file");
+    return bytes.str();
 }
 
 }  // namespace penumbra

@@ -13,10 +13,9 @@ namespace penumbra {
 // holds no faces.
 PolygonSoup readPolygonSoup(const std::string& path, const std::string& field);
 
-// Writes triangles with 8-bit vertex colours as a binary PLY through OpenMesh's writer. Throws
-// Error naming `path` if it cannot be written.
-void writeColouredPly(const std::string& path, const std::vector<Vec3>& vertices,
-                      const std::vector<std::array<int, 3>>& triangles,
-                      const std::vector<std::array<unsigned char, 3>>& colours);
+// Triangles with 8-bit vertex colours as the bytes of a binary PLY, made by OpenMesh's writer in
+// memory (the caller writes them with a checked write: io/atomic_file.h).
+std::string colouredPly(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
+                        const std::vector<std::array<unsigned char, 3>>& colours);
 
 }  // namespace penumbra

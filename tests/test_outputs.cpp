@@ -121,6 +121,25 @@ TEST(Outputs, ARenderFailsWholeToo) {
     EXPECT_EQ(failures, 6);
 }
 
+TEST(Outputs, AnExportAndAReferenceFailWholeToo) {
+    // export and reference wrote straight to their file (tinygltf's and OpenMesh's writers unchecked):
+    // now through the same output set, each format's write and its two moves.
+    const std::string solved = test::tempDir() + "/export-solution";
+    fs::remove_all(solved);
+    ASSERT_EQ(run(cat("solve ", smallScene(), " --out ", solved, " --patches 20 -q")).status, 0);
+    for (const std::string name : {"lit.glb", "lit.gltf", "lit.ply"}) {
+        const std::string out = test::tempDir() + "/export-fail";
+        fs::remove_all(out);
+        EXPECT_EQ(walkFailures(cat("export ", solved, " --out ", out, "/", name, " -q"), out, {name}), 3) << name;
+    }
+    const std::string out = test::tempDir() + "/reference-fail";
+    fs::remove_all(out);
+    EXPECT_EQ(walkFailures(cat("reference ", smallScene(), " --out ", out,
+                               "/reference.json --patches 20 --min-points 256 --max-points 256 -q"),
+                           out, {"reference.json"}),
+              3);
+}
+
 TEST(Outputs, AnOutputNameTakenByAFolderIsRefusedBeforeTheWork) {
     const std::string out = test::tempDir() + "/taken";
     fs::remove_all(out);
@@ -162,39 +181,56 @@ TEST(Outputs, ASecondRunIntoAFolderBeingWrittenIsRefused) {
     ::close(fd);
 }
 
-TEST(Outputs, SigtermLeavesTheWholeSetOrNothing) {
-    // SIGTERM at several moments of a solve of the Cornell box (its work takes about 0.3 s): the
-    // run exits with 128 + 15 and leaves no folder, or it had finished and left the whole set.
-    const std::set<std::string> whole{"solution.bin", "convergence.csv", "report.json", "radiosity.exr",
-                                      "radiosity.png"};
+// SIGTERM at several moments of `command` (penumbra's arguments, OUT standing for a fresh folder
+// under the test's, which the command writes into): the run exits with 128 + 15 and leaves OUT as
+// it was (absent unless `made`, then empty), or it had finished and left `whole` there. Returns how
+// many runs the signal stopped.
+int stopAtMoments(const std::vector<std::string>& command, const std::set<std::string>& whole, bool made,
+                  const std::string& name) {
     int stopped = 0;
     for (const int ms : {20, 60, 120, 200, 300, 450, 700}) {
-        const std::string out = cat(test::tempDir(), "/term-", ms);
+        const std::string out = cat(test::tempDir(), "/term-", name, "-", ms);
         fs::remove_all(out);
+        if (made) fs::create_directories(out);
         const std::string exe = PENUMBRA_EXE;
-        std::vector<std::string> args{exe, "solve", kBox, "--out", out, "-q"};
+        std::vector<std::string> args{exe};
+        for (const std::string& a : command)
+            args.push_back(a == "OUT" ? out : a.rfind("OUT/", 0) == 0 ? out + a.substr(3) : a);
         std::vector<char*> argv;
         for (std::string& a : args) argv.push_back(a.data());
         argv.push_back(nullptr);
         pid_t pid = 0;
-        ASSERT_EQ(posix_spawn(&pid, exe.c_str(), nullptr, nullptr, argv.data(), environ), 0);
+        EXPECT_EQ(posix_spawn(&pid, exe.c_str(), nullptr, nullptr, argv.data(), environ), 0);
         std::this_thread::sleep_for(std::chrono::milliseconds(ms));
         kill(pid, SIGTERM);
         int status = 0;
-        ASSERT_EQ(waitpid(pid, &status, 0), pid);
+        EXPECT_EQ(waitpid(pid, &status, 0), pid);
         std::set<std::string> names;
-        for (const auto& [name, text] : contents(out)) names.insert(name);
+        for (const auto& [entry, text] : contents(out)) names.insert(entry);
         if (WIFEXITED(status) && WEXITSTATUS(status) == 0) {
-            EXPECT_EQ(names, whole) << ms << " ms";
+            EXPECT_EQ(names, whole) << name << " " << ms << " ms";
         } else {
             ++stopped;
             // Exit 143 from the handler; or, before it was installed (the first milliseconds of
             // loading), the signal's default action.
             EXPECT_TRUE((WIFEXITED(status) && WEXITSTATUS(status) == 128 + SIGTERM) ||
                         (WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM))
-                << ms << " ms: status " << status;
-            EXPECT_FALSE(fs::exists(out)) << ms << " ms: left " << names.size() << " entries";
+                << name << " " << ms << " ms: status " << status;
+            EXPECT_EQ(fs::exists(out), made) << name << " " << ms << " ms";
+            EXPECT_TRUE(names.empty()) << name << " " << ms << " ms: left " << names.size() << " entries";
         }
     }
-    EXPECT_GT(stopped, 0) << "no run was stopped: the test lost its case";
+    return stopped;
+}
+
+TEST(Outputs, SigtermLeavesTheWholeSetOrNothing) {
+    // A solve of the Cornell box (its work takes about 0.3 s) into a new folder.
+    EXPECT_GT(stopAtMoments({"solve", kBox, "--out", "OUT", "-q"},
+                            {"solution.bin", "convergence.csv", "report.json", "radiosity.exr", "radiosity.png"}, false,
+                            "solve"),
+              0)
+        << "no solve was stopped: the test lost its case";
+    // A default render (its own solve and the final gather, about 0.3 s) into an existing folder.
+    EXPECT_GT(stopAtMoments({"render", kBox, "--out", "OUT/box.exr", "-q"}, {"box.exr", "box.png"}, true, "render"), 0)
+        << "no render was stopped: the test lost its case";
 }
