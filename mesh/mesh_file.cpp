@@ -198,19 +198,26 @@ void checkMeshFile(const std::string& path, const std::string& ext, const std::s
         std::string line;
         long long vertices = 0;
         for (size_t number = 1; std::getline(in, line); ++number) {
-            if (line.size() > 1 && line[0] == 'v' && (line[1] == ' ' || line[1] == '\t')) {
+            // The keyword is the line's first word, after any blanks (as OpenMesh reads it: " f /2"
+            // passed a check that looked at the first character, and an empty face tripped an
+            // assertion in OpenMesh's reader: found by tests/fuzz).
+            std::istringstream words(line);
+            std::string keyword;
+            words >> keyword;
+            if (keyword == "v") {
                 ++vertices;
-                std::istringstream words(line.substr(2));
                 checkCoordinates(words, cat(" line ", number));
             }
-            if (line.size() < 2 || line[0] != 'f' || (line[1] != ' ' && line[1] != '\t')) continue;
-            std::istringstream tokens(line.substr(2));
-            for (std::string token; tokens >> token;) {
+            if (keyword != "f") continue;
+            int corners = 0;
+            for (std::string token; words >> token; ++corners) {
                 const long long index = std::strtoll(token.c_str(), nullptr, 10);
                 if (index == 0 || index > vertices || index < -vertices)
                     throw Error(cat(where, " line ", number, ": face vertex index ", token.substr(0, token.find('/')),
                                     " is out of range (", vertices, " vertices before it)"));
             }
+            if (corners < 3)
+                throw Error(cat(where, " line ", number, ": a face of ", corners, " vertices (3 or more)"));
         }
     } else if (ext == ".off") {
         // As OpenMesh reads it: the keyword [ST][C][N][4][n]OFF alone on the first line (an 'OFF1'

@@ -146,6 +146,9 @@ TEST(CliErrors, HostileFilesAreRefusedByName) {
     test::writeText("range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 7\n");
     expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "range.obj"})"),
                   {"'m'", "range.obj", "line 5", "index 7 is out of range (3 vertices"});
+    test::writeText("indented.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n  f\n");
+    expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "indented.obj"})"),
+                  {"indented.obj", "line 4", "a face of 0 vertices"});
     test::writeText("negative.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n");
     expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "negative.obj"})"),
                   {"negative.obj", "line 4", "index -4 is out of range"});
