@@ -98,19 +98,36 @@ OutputSet::OutputSet(const std::string& dir, const std::vector<std::string>& nam
         slots_.push_back(remember(p.string(), true));
     }
     lock_ = (fs::path(dir_) / lockName).string();
-    lockFd_ = open(lock_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-    if (lockFd_ < 0) {
-        const int error = errno;
-        discard();
-        throw Error(cat(dir_, ": cannot write here: ", why(error)));
-    }
-    if (flock(lockFd_, LOCK_EX | LOCK_NB) != 0) {
+    // The lock is the file's inode: a run that opened the file just before its holder removed it
+    // would lock a file no longer in the folder while a third run made and locked a new one. So the
+    // inode locked must still be the one the name leads to; if not, open the name again.
+    for (int attempt = 0;; ++attempt) {
+        lockFd_ = open(lock_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+        if (lockFd_ < 0) {
+            const int error = errno;
+            discard();
+            throw Error(cat(dir_, ": cannot write here: ", why(error)));
+        }
+        if (flock(lockFd_, LOCK_EX | LOCK_NB) != 0) {
+            close(lockFd_);
+            lockFd_ = -1;  // another run's lock file: not ours to remove
+            lock_.clear();
+            discard();
+            throw Error(
+                cat(dir_, ": another penumbra run is writing its outputs here; wait for it or choose another --out"));
+        }
+        struct stat held {
+        }, named{};
+        if (fstat(lockFd_, &held) == 0 && stat(lock_.c_str(), &named) == 0 && held.st_ino == named.st_ino &&
+            held.st_dev == named.st_dev)
+            break;
         close(lockFd_);
-        lockFd_ = -1;  // another run's lock file: not ours to remove
-        lock_.clear();
-        discard();
-        throw Error(
-            cat(dir_, ": another penumbra run is writing its outputs here; wait for it or choose another --out"));
+        lockFd_ = -1;
+        if (attempt == 100) {
+            lock_.clear();
+            discard();
+            throw Error(cat(dir_, ": its lock file keeps changing: another penumbra run is writing its outputs here"));
+        }
     }
     slots_.push_back(remember(lock_, false));
     for (const std::string& name : names_) {

@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <new>
 #include <sstream>
 #include <vector>
 
@@ -297,8 +298,15 @@ PolygonSoup readPolygonSoup(const std::string& path, const std::string& field) {
     omout().disable();
     ReadMesh mesh;
     OpenMesh::IO::Options opt;
-    if (!OpenMesh::IO::read_mesh(mesh, path, opt))
-        throw Error(cat(field, ": mesh file '", path, "' cannot be read as ", ext.substr(1)));
+    bool read = false;
+    try {
+        read = OpenMesh::IO::read_mesh(mesh, path, opt);
+    } catch (const std::bad_alloc&) {  // by the file's name, not a bare "out of memory"
+        std::error_code sizeError;
+        throw Error(cat(field, ": mesh file '", path, "': out of memory reading its ", fs::file_size(path, sizeError),
+                        " bytes"));
+    }
+    if (!read) throw Error(cat(field, ": mesh file '", path, "' cannot be read as ", ext.substr(1)));
     if (mesh.n_faces() == 0) throw Error(cat(field, ": mesh file '", path, "' holds no faces"));
     PolygonSoup soup;
     soup.vertices.reserve(mesh.n_vertices());
