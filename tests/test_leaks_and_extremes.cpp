@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <nlohmann/json.hpp>
 
 #include "fixtures.h"
 #include "solver/radiosity/form_factor_kernel.h"
@@ -88,6 +89,27 @@ TEST(Extremes, PatchesFromMicrometresToKilometres) {
         const double emitted = kPi * scale * scale;
         EXPECT_NEAR(r.power.totalEmitted[0] * r.metresPerUnit * r.metresPerUnit, emitted, 1e-9 * emitted);
         test::expectBalanceByRays(scene, r, 2e-3, 1024, cat("scale ", scale));
+    }
+}
+
+TEST(Extremes, TinySpheresInARoomAbsorbWhatTheirAreaAllows) {
+    // A white ball of 1 mm down to 1e-12 m radius hanging in the Cornell box (issue 15: balls of
+    // 1e-5 to 1e-12 m absorbed 1.2x to 1e7x what their area and radiosity allow, as light reached
+    // their inside). A small ball's mean irradiance is the point's (a quarter of its scalar
+    // irradiance) whatever its size, so its radiosity must not move with the radius; and the
+    // room's power balances against the escape counted by rays.
+    nlohmann::json box = nlohmann::json::parse(test::sceneFile("cornell-box.json"));
+    box["objects"].push_back(
+        {{"name", "ball"}, {"type", "sphere"}, {"material", "white"}, {"center", {278, 300, 279}}, {"radius", 1.0}});
+    double reference = 0;
+    for (double radius : {1.0, 1e-2, 1e-5, 1e-9}) {  // in mm
+        box["objects"].back()["radius"] = radius;
+        const Scene scene = test::sceneFromJson(box.dump(), "tiny-ball.json");
+        const SolveResult r = solve(scene, 150);
+        const double b = objectRadiosity(r, scene.objects.size()).back().sum();
+        if (reference == 0) reference = b;
+        EXPECT_NEAR(b, reference, 0.01 * reference) << radius << " mm";
+        test::expectBalanceByRays(scene, r, 2e-3, 16, cat(radius, " mm"));
     }
 }
 
