@@ -123,9 +123,20 @@ const CLI::Validator kFinite(
     },
     "");
 
+// Unsigned options take whole numbers only: CLI11 read "--seed -5" as 2^64 - 5.
+const CLI::Validator kWhole(
+    [](std::string& text) {
+        return !text.empty() && text.size() <= 20 && text.find_first_not_of("0123456789") == std::string::npos
+                   ? std::string()
+                   : cat("expected a whole number, got ", text);
+    },
+    "");
+
 void requireFiniteNumbers(CLI::App& app) {
-    for (CLI::Option* o : app.get_options())
+    for (CLI::Option* o : app.get_options()) {
         if (o->get_type_name().rfind("FLOAT", 0) == 0) o->check(kFinite);
+        if (o->get_type_name().rfind("UINT", 0) == 0) o->check(kWhole);
+    }
     for (CLI::App* sub : app.get_subcommands(std::function<bool(CLI::App*)>())) requireFiniteNumbers(*sub);
 }
 

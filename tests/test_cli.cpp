@@ -200,6 +200,7 @@ TEST(CliErrors, HostileValuesAreRefusedByName) {
     // Options: numbers must be finite, thread counts bounded.
     expectRefused(sceneWith("", ""), {"--tolerance", "got nan"}, "--tolerance nan");
     expectRefused(sceneWith("", ""), {"--tolerance 0.01", "at most"}, "--tolerance 0.01");
+    expectRefused(sceneWith("", ""), {"--seed", "expected a whole number, got -5"}, "--seed -5");
     // Every solver honours --max-memory: the hierarchy took 1.5 MiB under a bound of 1 KiB.
     const std::string facing =
         R"({"name": "r", "type": "quad", "material": "lamp", "vertices": [[0,0,1],[0,1,1],[1,1,1],[1,0,1]]})";
