@@ -470,7 +470,7 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
             }
         }
         r.objectNoise = objectNoise(scene, options, r, analytic, first, raysFor);
-        readLightWhereRaysLand(r.F, r.patches, readings, first, r.system.specular);
+        readLightWhereRaysLand(r.F, r.patches, readings, first, r.system.specular, r.system.reflectance);
         readings = HitReadings();
         r.secondsSolve += readTimer.seconds();
     }

@@ -173,7 +173,8 @@ void slopeWeights(const PatchSet& p, const std::vector<float>& exposed, HitReadi
 // uncovered centroid moves w limit_j (q_k . x) from column j to each neighbour k. Columns ascending.
 void foldNearHits(FormFactorMatrix::SparseRow row, const std::vector<HitReadings::Near>& hits,
                   const std::vector<HitReadings::Near>& farHits, const HitReadings& h, const std::vector<float>& limit,
-                  const std::vector<char>& steep, std::vector<std::pair<int32_t, float>>& out) {
+                  const std::vector<char>& steep, double most, std::vector<std::pair<int32_t, float>>& out,
+                  size_t& damped) {
     // The moves, sorted and summed per column, then merged with the row (already ascending).
     static thread_local std::vector<std::pair<int32_t, float>> moves;
     moves.clear();
@@ -193,18 +194,36 @@ void foldNearHits(FormFactorMatrix::SparseRow row, const std::vector<HitReadings
         moves.push_back({hit.patch, float(-moved)});
     }
     std::sort(moves.begin(), moves.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    // Per column of the result: the row's entry and the moves' sum.
+    static thread_local std::vector<std::pair<float, float>> parts;
     out.clear();
+    parts.clear();
     out.reserve(row.count + moves.size());
     size_t k = 0, m = 0;
     while (k < row.count || m < moves.size()) {
         const bool fromRow = m == moves.size() || (k < row.count && row.column[k] <= moves[m].first);
-        const std::pair<int32_t, float> e = fromRow ? std::make_pair(row.column[k], row.value[k]) : moves[m];
+        const int32_t column = fromRow ? row.column[k] : moves[m].first;
+        if (out.empty() || out.back().first != column) out.push_back({column, 0.0f}), parts.push_back({0.0f, 0.0f});
+        (fromRow ? parts.back().first : parts.back().second) += fromRow ? row.value[k] : moves[m].second;
         fromRow ? ++k : ++m;
-        if (!out.empty() && out.back().first == e.first)
-            out.back().second += e.second;
-        else
-            out.push_back(e);
     }
+    // The moves take weight from some entries and give it to others, so that a row may sum its
+    // magnitudes past one. Jacobi and Gauss-Seidel converge where rho_i sum_j |F_ij| < 1 in every
+    // row; at rho 0.999 one mesh's folded rows reached 1.41 and Gauss-Seidel diverged. So the moves
+    // of a row are scaled down, t in [0, 1], until its magnitudes sum to at most `most`.
+    auto magnitude = [&](double t) {
+        double a = 0;
+        for (const auto& [base, move] : parts) a += std::abs(double(base) + t * double(move));
+        return a;
+    };
+    double t = 1;
+    if (magnitude(1) > most) {
+        double low = 0, high = 1;  // magnitude is convex in t, and at most `most` at 0
+        for (int step = 0; step < 30; ++step) (magnitude(0.5 * (low + high)) > most ? high : low) = 0.5 * (low + high);
+        t = low;
+        ++damped;
+    }
+    for (size_t c = 0; c < out.size(); ++c) out[c].second = float(double(parts[c].first) + t * double(parts[c].second));
 }
 
 // FormFactorMatrix::entryVariance's order: rows ascending, columns within them.
@@ -689,7 +708,8 @@ void castMoreRays(FormFactorMatrix& F, HitReadings& read, const PatchSet& patche
 }
 
 void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const HitReadings& read,
-                            const std::vector<Rgb>& B, const std::vector<char>& specular) {
+                            const std::vector<Rgb>& B, const std::vector<char>& specular,
+                            const std::vector<Rgb>& reflectance) {
     const size_t n = F.size();
     if (!F.isSparse() || read.rows.size() != n || read.start.size() != n + 1 || B.size() != n) return;
     const Timer timer;
@@ -734,15 +754,28 @@ void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const 
         },
         256);
     std::vector<std::vector<std::pair<int32_t, float>>> rows(n), meanRows(n);
+    std::atomic<size_t> damped{0};
     parallelFor(
         int64_t(n),
         [&](int64_t begin, int64_t end) {
+            size_t mine = 0;
             for (int64_t ii = begin; ii < end; ++ii) {
                 const size_t i = size_t(ii);
-                foldNearHits(F.sparseRow(i), read.rows[i], read.farRows[i], read, limit, steep, rows[i]);
+                // Half of the row's margin below one kept: rho_i sum |F_ij| <= (1 + rho_i s_i) / 2,
+                // s_i its sum (which the moves keep).
+                auto most = [&](FormFactorMatrix::SparseRow row) {
+                    const double rho = i < reflectance.size() ? reflectance[i].maxCoeff() : 0.0;  // none: no bound
+                    double s = 0;
+                    for (size_t k = 0; k < row.count; ++k) s += std::abs(double(row.value[k]));
+                    return rho > 0 ? std::max(s, (1 + rho * s) / (2 * rho)) : 1e30;
+                };
+                foldNearHits(F.sparseRow(i), read.rows[i], read.farRows[i], read, limit, steep, most(F.sparseRow(i)),
+                             rows[i], mine);
                 if (F.hasMeanRow(i))
-                    foldNearHits(F.meanRow(i), read.meanRows[i], read.farMeanRows[i], read, limit, steep, meanRows[i]);
+                    foldNearHits(F.meanRow(i), read.meanRows[i], read.farMeanRows[i], read, limit, steep,
+                                 most(F.meanRow(i)), meanRows[i], mine);
             }
+            damped += mine;
         },
         64);
     replaceRows(F, rows, meanRows);
@@ -750,8 +783,9 @@ void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const 
     for (size_t j = 0; j < n; ++j)
         limited += read.start[j + 1] > read.start[j] && limit[j] < 1 && !(j < specular.size() && specular[j]);
     logInfo("form factors (rays): rays that landed within ", kNearRadii,
-            " radii read the light where they landed (slopes of ", limited, " of ", n, " patches limited); entries ",
-            before, " -> ", F.entries(), ", ", timer.seconds(), " s");
+            " radii read the light where they landed (slopes of ", limited, " of ", n, " patches limited; moves of ",
+            size_t(damped), " rows scaled down to keep them contractive); entries ", before, " -> ", F.entries(), ", ",
+            timer.seconds(), " s");
 }
 
 Closure sceneClosure(const PatchSet& patches, const RayScene& rays, int raysPerPatch, uint64_t seed) {

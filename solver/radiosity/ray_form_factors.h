@@ -101,8 +101,12 @@ struct HitReadings {
     std::vector<float> qu, qv;
     Vec3 uncoveredCentroid(const PatchSet& p, size_t i) const;
 };
+// `reflectance` (per patch): a row's moves are scaled down where they would take rho_i sum_j |F_ij|
+// past halfway from rho_i sum_j F_ij to one, the bound under which the solvers converge (without
+// it, no bound).
 void readLightWhereRaysLand(FormFactorMatrix& F, const PatchSet& patches, const HitReadings& readings,
-                            const std::vector<Rgb>& B, const std::vector<char>& specular = {});
+                            const std::vector<Rgb>& B, const std::vector<char>& specular = {},
+                            const std::vector<Rgb>& reflectance = {});
 
 // Casts the rows i with raysFor[i] > 0 again, with that many rays (a stream of their own), in place
 // of F's and of their readings, and the slopes again (the uncovered parts are measured anew).
