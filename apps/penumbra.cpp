@@ -387,6 +387,7 @@ int runView(RenderCli& c, SolveCli& s, ViewerOptions& options, const CommonOptio
         const std::string parent = std::filesystem::path(options.screenshot).parent_path().string();
         if (!parent.empty()) ensureDirectory(parent);
     }
+    releaseHeldLog();  // the window may stay open for long: what led to it, now
     runViewer(scene, stored.patches, stored.corners, stored.solution.display, stored.indirect, camera, options);
     return 0;
 }
@@ -716,25 +717,33 @@ int main(int argc, char** argv) {
     try {
         setupLogging(common);
         installSignalCleanup();
-        if (*solveCmd) return runSolve(solve, common);
-        if (*renderCmd) return runRender(render, renderSolve, common);
-        if (*exportCmd) return runExport(exportDir, exportOut, exportFormat, exportStops);
-        if (*compareCmd) return runCompare(compareImage, compareReference, compareScene, compareCamera);
-        if (*viewCmd) return runView(view, viewSolve, viewer, common);
-        if (*referenceCmd) return runReference(reference, common);
-        if (*benchCmd) {
-            benchOptions.seed = common.seed;
-            return runBenchCommand(benchOptions, benchResolution);
-        }
+        holdLog();  // a refusal in the first second prints the error alone (core/log.h)
+        const int status = [&] {
+            if (*solveCmd) return runSolve(solve, common);
+            if (*renderCmd) return runRender(render, renderSolve, common);
+            if (*exportCmd) return runExport(exportDir, exportOut, exportFormat, exportStops);
+            if (*compareCmd) return runCompare(compareImage, compareReference, compareScene, compareCamera);
+            if (*viewCmd) return runView(view, viewSolve, viewer, common);
+            if (*referenceCmd) return runReference(reference, common);
+            if (*benchCmd) {
+                benchOptions.seed = common.seed;
+                return runBenchCommand(benchOptions, benchResolution);
+            }
+            return 0;
+        }();
+        releaseHeldLog();
+        return status;
     } catch (const Error& e) {
+        dropHeldLog();
         std::fprintf(stderr, "penumbra: error: %s\n", e.what());
         return 1;
     } catch (const std::bad_alloc&) {
+        dropHeldLog();
         std::fprintf(stderr, "penumbra: error: out of memory (lower --patches or the resolution)\n");
         return 1;
     } catch (const std::exception& e) {
+        releaseHeldLog();  // what led to an internal error
         std::fprintf(stderr, "penumbra: internal error: %s\n", e.what());
         return 70;
     }
-    return 0;
 }

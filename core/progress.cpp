@@ -13,7 +13,9 @@ Progress::Progress(std::string title, int64_t total)
       total_(total > 0 ? total : 1),
       enabled_(isatty(STDERR_FILENO) && logLevel() <= LogLevel::Info),
       start_(std::chrono::steady_clock::now()),
-      lastDraw_(start_) {}
+      lastDraw_(start_) {
+    if (enabled_) releaseHeldLog();  // the lines before the bar, before it
+}
 
 Progress::~Progress() { done(); }
 

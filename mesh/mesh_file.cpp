@@ -229,9 +229,15 @@ void checkMeshFile(const std::string& path, const std::string& ext, const std::s
         while (!word.empty() && std::isspace(static_cast<unsigned char>(word.back()))) word.pop_back();
         const bool header = word.size() >= 3 && word.compare(word.size() - 3, 3, "OFF") == 0 &&
                             word.find_first_not_of("STCN4n") == word.size() - 3;
-        if (!header)
+        if (!header) {
+            const std::string keyword = word.substr(0, word.find_first_of(" \t"));
+            if (keyword != word && keyword.size() >= 3 && keyword.compare(keyword.size() - 3, 3, "OFF") == 0)
+                throw Error(cat(where, ": the keyword ", keyword,
+                                " must stand alone on the first line, the counts on the next (its first line is '",
+                                word.substr(0, 20), "', which OpenMesh misreads)"));
             throw Error(cat(where, ": not a text OFF file (its first line is '", word.substr(0, 20),
                             "'; binary OFF is not read: save it as text OFF, PLY or OBJ)"));
+        }
         auto whole = [](const std::string& v) {
             return !v.empty() && v.size() < 12 && v.find_first_not_of("0123456789") == std::string::npos;
         };

@@ -47,6 +47,8 @@ void expectRefused(const std::string& json, std::initializer_list<const char*> f
     size_t errors = 0;
     for (size_t at = r.output.find("error:"); at != std::string::npos; at = r.output.find("error:", at + 1)) ++errors;
     EXPECT_EQ(errors, 1u) << r.output;
+    EXPECT_EQ(r.output.find("info:"), std::string::npos)
+        << "the error alone, without the lines before it: " << r.output;
     for (const char* f : fragments)
         EXPECT_NE(r.output.find(f), std::string::npos) << "missing '" << f << "' in: " << r.output;
     EXPECT_FALSE(fs::exists(out)) << "output written despite the error";
@@ -143,6 +145,9 @@ TEST(CliErrors, HostileFilesAreRefusedByName) {
     test::writeText("claims.off", "OFF\n50000 50000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
     expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "claims.off"})"),
                   {"'m'", "claims.off", "claims 100000 vertices and faces"});
+    test::writeText("counts.off", "OFF 3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "counts.off"})"),
+                  {"counts.off", "the keyword OFF must stand alone on the first line, the counts on the next"});
     test::writeText("range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 7\n");
     expectRefused(sceneWith("", R"({"name": "m", "type": "mesh", "material": "lamp", "file": "range.obj"})"),
                   {"'m'", "range.obj", "line 5", "index 7 is out of range (3 vertices"});
