@@ -28,6 +28,28 @@ using ReadMesh = OpenMesh::PolyMesh_ArrayKernelT<ReadTraits>;
 
 namespace {
 
+// The PLY scalar types (each by two names), their sizes and how to read one in the machine's order.
+struct PlyType {
+    const char *name, *alias;
+    int bytes;
+    double (*decode)(const unsigned char*);
+};
+template <typename T>
+double decodeAs(const unsigned char* raw) {
+    T x;
+    std::memcpy(&x, raw, sizeof x);
+    return double(x);
+}
+const PlyType kPlyTypes[] = {{"char", "int8", 1, decodeAs<int8_t>},    {"uchar", "uint8", 1, decodeAs<uint8_t>},
+                             {"short", "int16", 2, decodeAs<int16_t>}, {"ushort", "uint16", 2, decodeAs<uint16_t>},
+                             {"int", "int32", 4, decodeAs<int32_t>},   {"uint", "uint32", 4, decodeAs<uint32_t>},
+                             {"float", "float32", 4, decodeAs<float>}, {"double", "float64", 8, decodeAs<double>}};
+const PlyType* plyType(const std::string& t) {
+    for (const PlyType& k : kPlyTypes)
+        if (t == k.name || t == k.alias) return &k;
+    return nullptr;
+}
+
 // A PLY file as OpenMesh reads it, refused where OpenMesh would hang, crash or take memory without
 // end. The header, line by line, as the format defines it: OpenMesh's reader reads it word by word
 // whatever the lines, and loops forever once the words run out before an end_header (found by
@@ -54,14 +76,6 @@ void checkPly(std::istream& in, uintmax_t size, const std::string& where) {
     auto header = [](const std::string& t) {
         return t == "ply" || t == "format" || t == "comment" || t == "obj_info" || t == "element" || t == "property" ||
                t == "end_header";
-    };
-    auto bytes = [](const std::string& t) {
-        for (const auto& [names, n] : {std::pair<const char*, int>{" char uchar int8 uint8 ", 1},
-                                       {" short ushort int16 uint16 ", 2},
-                                       {" int uint float int32 uint32 float32 ", 4},
-                                       {" double float64 ", 8}})
-            if (std::string(names).find(" " + t + " ") != std::string::npos) return n;
-        return 0;
     };
     for (size_t number = 1; !ended && std::getline(in, line); ++number) {
         if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -92,7 +106,7 @@ void checkPly(std::istream& in, uintmax_t size, const std::string& where) {
         } else if (keyword == "property") {
             if (elements.empty()) bad("a property before any element (OpenMesh crashed on it)");
             const bool list = words >> a && a == "list";
-            if (list ? !(words >> b >> c >> name) || !bytes(b) || !bytes(c) : !bytes(a) || !(words >> name))
+            if (list ? !(words >> b >> c >> name) || !plyType(b) || !plyType(c) : !plyType(a) || !(words >> name))
                 bad("expected property TYPE NAME or property list TYPE TYPE NAME");
             if (words >> rest || header(name)) bad("expected property TYPE NAME or property list TYPE TYPE NAME");
             elements.back().properties.push_back(list ? Property{true, b, c, name} : Property{false, "", a, name});
@@ -120,30 +134,10 @@ void checkPly(std::istream& in, uintmax_t size, const std::string& where) {
             return v;
         }
         unsigned char raw[8] = {};
-        const int n = bytes(type);
-        if (!in.read(reinterpret_cast<char*>(raw), n)) throw Error(cat(where, ": its data ends inside ", at));
-        if (swap) std::reverse(raw, raw + n);
-        double v = 0;
-        auto as = [&](auto x) {
-            std::memcpy(&x, raw, sizeof x);
-            return double(x);
-        };
-        if (type == "char" || type == "int8")
-            v = as(int8_t());
-        else if (type == "uchar" || type == "uint8")
-            v = as(uint8_t());
-        else if (type == "short" || type == "int16")
-            v = as(int16_t());
-        else if (type == "ushort" || type == "uint16")
-            v = as(uint16_t());
-        else if (type == "int" || type == "int32")
-            v = as(int32_t());
-        else if (type == "uint" || type == "uint32")
-            v = as(uint32_t());
-        else if (type == "float" || type == "float32")
-            v = as(float());
-        else
-            v = as(double());
+        const PlyType* t = plyType(type);
+        if (!in.read(reinterpret_cast<char*>(raw), t->bytes)) throw Error(cat(where, ": its data ends inside ", at));
+        if (swap) std::reverse(raw, raw + t->bytes);
+        const double v = t->decode(raw);
         if (!std::isfinite(v)) throw Error(cat(where, ": ", at, ": a value that is not a finite number"));
         return v;
     };
