@@ -37,6 +37,7 @@ enum class Stream : uint64_t {
     ObjectReference = 0x0B1EC7,  // the path-traced per-object radiosity (pairRng: object, batch)
     CausticGrading = 0xCA0571,   // photons that find where caustics fall, for the mesh (per block)
     PhotonAim = 0xA1A1,          // emitter points that size the aimed photon pass
+    LightPaths = 0x119A7,        // the path tracer's light paths to the camera, per path
 };
 
 class Rng {

@@ -22,6 +22,24 @@ public:
         const double sy = (1 - 2 * py / c_.height) * tanHalf_;
         return (forward_ + sx * right_ + sy * up_).normalized();
     }
+    // Where the line from the eye to `p` crosses the image, in pixels (continuous, as `direction`
+    // takes them), and the cosine of its angle to the view axis; false if `p` is not in front of
+    // the eye within the image.
+    bool project(const Vec3& p, double& px, double& py, double& cosAxis) const {
+        const Vec3 v = p - c_.position;
+        const double z = v.dot(forward_);
+        if (!(z > 0)) return false;
+        const double aspect = double(c_.width) / c_.height;
+        px = (v.dot(right_) / (z * tanHalf_ * aspect) + 1) * 0.5 * c_.width;
+        py = (1 - v.dot(up_) / (z * tanHalf_)) * 0.5 * c_.height;
+        cosAxis = z / v.norm();
+        return px >= 0 && px < c_.width && py >= 0 && py < c_.height;
+    }
+    // The area of one pixel on the image plane at unit distance from the eye.
+    double pixelArea() const {
+        const double aspect = double(c_.width) / c_.height;
+        return 4 * tanHalf_ * tanHalf_ * aspect / (double(c_.width) * c_.height);
+    }
     const Vec3& origin() const { return c_.position; }
     int width() const { return c_.width; }
     int height() const { return c_.height; }

@@ -1,6 +1,9 @@
 #include "render/path_tracer.h"
 
 #include "core/optics.h"
+#include "core/parallel.h"
+#include "render/camera.h"
+#include "render/photon_map.h"
 
 namespace penumbra {
 namespace {
@@ -23,8 +26,10 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
                  const PathSettings& settings) {
     Rgb L = Rgb::Zero(), throughput = Rgb::Ones();
     Vec3 o = origin, d = dir;
-    bool specular = true;  // the last bounce was the camera or a mirror/glass: emission counts fully
-    double bsdfPdf = 0;    // solid-angle pdf of the last diffuse bounce, for MIS on emitters
+    bool specular = true;          // the last bounce was the camera or a mirror/glass: emission counts fully
+    double bsdfPdf = 0;            // solid-angle pdf of the last diffuse bounce, for MIS on emitters
+    bool cameraSawDiffuse = true;  // the camera ray's first surface was diffuse
+    bool byLight = false;          // this vertex's emission is the light paths' (causticsByLight)
     for (int depth = 0, vertex = 0; depth < settings.maxDepth; ++depth, ++vertex) {
         const uint32_t dims = kPerVertex * uint32_t(vertex);
         SurfaceHit hit = tracer.trace(o, d);
@@ -35,6 +40,8 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
             throughput *= w.throughput;
             depth += w.bounces;
             specular = true;
+            if (vertex == 0) cameraSawDiffuse = false;
+            byLight = vertex == 1 && cameraSawDiffuse && w.bounces <= settings.causticsByLight;
             if (w.end != WalkEnd::Diffuse) break;
             hit = w.hit;
             d = w.dir;
@@ -42,7 +49,7 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
         if (!hit.found) break;
         const Material& m = *hit.material;
         if (!hit.frontFacing(d)) break;  // back faces are black
-        if (m.emits()) {
+        if (m.emits() && !byLight) {
             if (specular) {
                 L += throughput * m.emission;
             } else {
@@ -68,6 +75,7 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
         o = x;
         throughput *= m.reflectance;
         specular = false;
+        byLight = false;
         if (depth + 1 >= settings.rouletteDepth) {
             const double q = std::min(0.95, throughput.maxCoeff() / settings.rouletteThroughput);
             if (q <= 0 || rng.uniform() >= q) break;
@@ -82,14 +90,63 @@ template Rgb pathRadiance(const SceneTracer&, const Vec3&, const Vec3&, PixelSam
 
 Image renderPath(const SceneTracer& tracer, const Camera& camera, int samplesPerPixel, uint64_t seed,
                  const PathSettings& settings) {
-    if (!settings.lowDiscrepancy)
-        return renderPixels(camera, samplesPerPixel, seed, "path tracing", [&](const Vec3& o, const Vec3& d, Rng& rng) {
-            return pathRadiance(tracer, o, d, rng, settings);
-        });
-    return renderPixelsSampled(camera, samplesPerPixel, seed, "path tracing",
-                               [&](const Vec3& o, const Vec3& d, PixelSampler& sampler) {
-                                   return pathRadiance(tracer, o, d, sampler, settings);
-                               });
+    PathSettings s = settings;
+    const int64_t lightPaths =
+        tracer.hasSpecular() && tracer.hasEmitters()
+            ? int64_t(std::ceil(s.lightPathsPerSample * double(camera.width) * camera.height * samplesPerPixel))
+            : 0;
+    const int kLightBounces = PhotonSettings{}.maxDepth;
+    if (lightPaths > 0) s.causticsByLight = kLightBounces;
+    Image image =
+        !s.lowDiscrepancy
+            ? renderPixels(camera, samplesPerPixel, seed, "path tracing",
+                           [&](const Vec3& o, const Vec3& d, Rng& rng) { return pathRadiance(tracer, o, d, rng, s); })
+            : renderPixelsSampled(camera, samplesPerPixel, seed, "path tracing",
+                                  [&](const Vec3& o, const Vec3& d, PixelSampler& sampler) {
+                                      return pathRadiance(tracer, o, d, sampler, s);
+                                  });
+    if (lightPaths > 0) {
+        const Image light = lightPathsToEye(tracer, camera, lightPaths, seed, kLightBounces);
+        for (size_t k = 0; k < image.rgb.size(); ++k) image.rgb[k] += light.rgb[k];
+    }
+    return image;
+}
+
+Image lightPathsToEye(const SceneTracer& tracer, const Camera& camera, int64_t paths, uint64_t seed, int maxBounces) {
+    PhotonSettings settings;
+    settings.photons = paths;
+    settings.seed = seed;
+    settings.maxDepth = maxBounces;
+    const CausticPhotons photons = traceCausticPhotons(tracer, settings, Stream::LightPaths, "light paths");
+    const PinholeCamera eye(camera);
+    const double pixelArea = eye.pixelArea();
+    struct Splat {
+        size_t pixel;
+        Rgb value;
+    };
+    std::vector<std::vector<Splat>> splats(photons.chunks.size());
+    parallelFor(int64_t(splats.size()), [&](int64_t c0, int64_t c1) {
+        prepareTracingThread();
+        for (int64_t c = c0; c < c1; ++c)
+            for (const PhotonLanding& l : photons.chunks[size_t(c)]) {
+                const Vec3 toEye = eye.origin() - l.hit.point;
+                const double distance = toEye.norm(), cosSurface = l.hit.normal.dot(toEye) / distance;
+                double px, py, cosAxis;
+                if (!(cosSurface > 0) || !eye.project(l.hit.point, px, py, cosAxis)) continue;
+                if (!tracer.visible(tracer.offset(l.hit, toEye), eye.origin())) continue;
+                const size_t pixel = size_t(int(py)) * size_t(camera.width) + size_t(int(px));
+                splats[size_t(c)].push_back(
+                    {pixel, l.power * l.hit.material->reflectance * kInvPi * cosSurface /
+                                (distance * distance * cosAxis * cosAxis * cosAxis * pixelArea)});
+            }
+    });
+    Image image(camera.width, camera.height);
+    std::vector<Rgb> sum(size_t(camera.width) * size_t(camera.height), Rgb::Zero());
+    for (const std::vector<Splat>& chunk : splats)
+        for (const Splat& s : chunk) sum[s.pixel] += s.value;
+    for (int y = 0; y < camera.height; ++y)
+        for (int x = 0; x < camera.width; ++x) image.set(x, y, sum[size_t(y) * size_t(camera.width) + size_t(x)]);
+    return image;
 }
 
 }  // namespace penumbra

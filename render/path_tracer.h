@@ -22,6 +22,15 @@ struct PathSettings {
     // Each pixel's decisions from a PixelSampler (renderPixelsSampled); false: independent numbers
     // per pixel (renderPixels), as before 2026-12-06.
     bool lowDiscrepancy = true;
+    // Light paths (renderPath): the caustics a camera ray meets first (eye, a diffuse surface, then
+    // one or more mirror or glass bounces to a lamp) come from caustic photons traced from the lamps
+    // and joined to the eye, this many per camera sample; the camera's paths leave those out. A
+    // camera path finds them only when its bounce hits the lamp's image in a mirror or through glass.
+    // 0: the camera's paths alone, as before 2026-12-07.
+    double lightPathsPerSample = 0.25;
+    // (renderPath sets it) pathRadiance leaves out the paths eye-diffuse-specular^k-lamp with
+    // 1 <= k <= this, which the light paths carry; 0: none.
+    int causticsByLight = 0;
 };
 
 // Radiance along a ray, its decisions drawn from `rng`: an Rng (independent numbers) or a
@@ -32,7 +41,16 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
 
 // With settings.lowDiscrepancy (the default), each pixel's samples from its own PixelSampler: the
 // camera's point in the pixel and every decision of the path stratified over the pixel's samples.
+// With settings.lightPathsPerSample > 0 and mirrors or glass in the scene, the light paths add the
+// caustics seen directly (lightPathsToEye).
 Image renderPath(const SceneTracer& tracer, const Camera& camera, int samplesPerPixel, uint64_t seed,
                  const PathSettings& settings = {});
+
+// The light paths' share of an image: `paths` caustic photons traced from the lamps (Stream::LightPaths,
+// `seed`; at most `maxBounces` specular bounces), each joined to the eye from where it landed and
+// added to its pixel as the mean radiance over the pixel's square: power x rho / pi x cos_surface /
+// (distance^2 x cos_axis^3 x the pixel's area at unit distance). The same image whatever the thread
+// count (the additions in the photons' order).
+Image lightPathsToEye(const SceneTracer& tracer, const Camera& camera, int64_t paths, uint64_t seed, int maxBounces);
 
 }  // namespace penumbra

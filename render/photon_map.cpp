@@ -169,23 +169,23 @@ struct PhotonMap::Impl {
     std::unique_ptr<KdTree<IrradiancePoint>> precomputedTree;
 };
 
-PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
-    : impl_(std::make_unique<Impl>()), nearest_(settings.nearest) {
-    Timer timer;
-    maxRadius_ = settings.maxRadius * tracer.diagonal();
+CausticPhotons traceCausticPhotons(const SceneTracer& tracer, const PhotonSettings& settings, Stream stream,
+                                   const char* title) {
+    CausticPhotons out;
+    PhotonStats& stats = out.stats;
     const int64_t emitting = tracer.hasEmitters() ? settings.photons : 0;
     const std::vector<Target> targets = settings.aim ? specularTargets(tracer) : std::vector<Target>{};
     const int64_t aimed = settings.aim ? aimedPhotons(tracer, targets, emitting, settings.seed) : 0;
     const int64_t n = aimed > 0 ? aimed : emitting;  // photons traced
     const int64_t chunks = (n + kChunk - 1) / kChunk;
-    std::vector<std::vector<Photon>> stored(static_cast<size_t>(chunks));
+    out.chunks.resize(static_cast<size_t>(chunks));
     std::vector<Rgb> emitted(static_cast<size_t>(chunks), Rgb::Zero());
-    Progress progress("photons", chunks);
+    Progress progress(title, chunks);
     parallelFor(chunks, [&](int64_t c0, int64_t c1) {
         prepareTracingThread();
         for (int64_t c = c0; c < c1; ++c) {
             for (int64_t k = c * kChunk; k < std::min(n, (c + 1) * kChunk); ++k) {
-                Rng rng = streamRng(settings.seed, Stream::Photons, uint64_t(k));
+                Rng rng = streamRng(settings.seed, stream, uint64_t(k));
                 const EmitterSample e = tracer.sampleEmitter(rng);
                 Rgb power;
                 Vec3 d;
@@ -204,29 +204,38 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
                     d = cosineDirection(e.normal, rng);
                 }
                 emitted[size_t(c)] += power;
-                const SpecularWalk w = walkSpecular(tracer, tracer.trace(e.point + tracer.epsilon() * e.normal, d), d,
-                                                    rng, settings.maxDepth);
+                SpecularWalk w = walkSpecular(tracer, tracer.trace(e.point + tracer.epsilon() * e.normal, d), d, rng,
+                                              settings.maxDepth);
                 if (w.end == WalkEnd::Diffuse && w.bounces > 0 && w.hit.frontFacing(w.dir))
-                    stored[size_t(c)].push_back({w.hit.point.cast<float>(), w.hit.normal.cast<float>(),
-                                                 Rgb(power * w.throughput).matrix().cast<float>()});
+                    out.chunks[size_t(c)].push_back({std::move(w.hit), w.dir, Rgb(power * w.throughput)});
             }
             progress.update();
         }
     });
     progress.done();
-    for (size_t c = 0; c < stored.size(); ++c) {
-        (aimed > 0 ? stats_.aimedPower : stats_.emittedPower) += emitted[c];
-        for (const Photon& p : stored[c]) {
-            impl_->cloud.points.push_back(p);
-            stats_.storedPower += p.power.cast<double>().array();
-        }
+    for (size_t c = 0; c < out.chunks.size(); ++c) {
+        (aimed > 0 ? stats.aimedPower : stats.emittedPower) += emitted[c];
+        for (const PhotonLanding& l : out.chunks[c]) stats.storedPower += l.power;
+        stats.stored += int64_t(out.chunks[c].size());
     }
-    stats_.emitted = emitting;
-    stats_.aimed = aimed;
-    if (aimed > 0) stats_.emittedPower = tracer.emittedPower();
-    stats_.stored = int64_t(impl_->cloud.points.size());
+    stats.emitted = emitting;
+    stats.aimed = aimed;
+    if (aimed > 0) stats.emittedPower = tracer.emittedPower();
+    return out;
+}
+
+PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
+    : impl_(std::make_unique<Impl>()), nearest_(settings.nearest) {
+    Timer timer;
+    maxRadius_ = settings.maxRadius * tracer.diagonal();
+    const CausticPhotons photons = traceCausticPhotons(tracer, settings, Stream::Photons, "photons");
+    stats_ = photons.stats;
     g_photonsEmitted.add(uint64_t(stats_.emitted));
     g_photonsStored.add(uint64_t(stats_.stored));
+    for (const std::vector<PhotonLanding>& chunk : photons.chunks)
+        for (const PhotonLanding& l : chunk)
+            impl_->cloud.points.push_back(
+                {l.hit.point.cast<float>(), l.hit.normal.cast<float>(), l.power.matrix().cast<float>()});
     impl_->tree = std::make_unique<KdTree<Photon>>(3, impl_->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
     if (settings.precompute > 0 && !impl_->cloud.points.empty()) {
         const size_t stride = size_t(settings.precompute), count = (impl_->cloud.points.size() + stride - 1) / stride;
@@ -250,10 +259,11 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
             3, impl_->precomputed, nanoflann::KDTreeSingleIndexAdaptorParams(16));
     }
     stats_.seconds = timer.seconds();
-    if (aimed > 0)
-        logInfo("caustic photons: ", stats_.stored, " stored of ", aimed, " aimed at the mirrors and glass (for ",
-                emitting, " emitted; ", stats_.storedPower.sum(), " W of ", stats_.aimedPower.sum(),
-                " W sent at them, ", stats_.emittedPower.sum(), " W emitted) in ", stats_.seconds, " s");
+    if (stats_.aimed > 0)
+        logInfo("caustic photons: ", stats_.stored, " stored of ", stats_.aimed,
+                " aimed at the mirrors and glass (for ", stats_.emitted, " emitted; ", stats_.storedPower.sum(),
+                " W of ", stats_.aimedPower.sum(), " W sent at them, ", stats_.emittedPower.sum(), " W emitted) in ",
+                stats_.seconds, " s");
     else
         logInfo("caustic photons: ", stats_.stored, " stored of ", stats_.emitted, " emitted (",
                 stats_.storedPower.sum(), " W of ", stats_.emittedPower.sum(), " W) in ", stats_.seconds, " s");

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/math.h"
+#include "core/rng.h"
 #include "solver/tracer.h"
 
 namespace penumbra {
@@ -38,6 +39,26 @@ struct PhotonStats {
     Rgb storedPower = Rgb::Zero();   // sum of the stored photons' powers, W
     double seconds = 0;
 };
+
+// Where a caustic photon landed: the first diffuse front face it met after at least one specular
+// bounce, the direction it arrived along, and its power (W).
+struct PhotonLanding {
+    SurfaceHit hit;
+    Vec3 dir;
+    Rgb power;
+};
+
+struct CausticPhotons {
+    std::vector<std::vector<PhotonLanding>> chunks;  // the landings, chunk by chunk in the order traced
+    PhotonStats stats;                               // all but the seconds
+};
+
+// The caustic photons' pass, which the map stores and the path tracer's light paths connect to the
+// camera (render/path_tracer.h): settings.photons emitted, aimed at the mirrors and glass where that
+// pays, each from its own stream of `stream` and the seed, in chunks, so that the landings come out
+// in one order whatever the thread count. `title` names the progress bar.
+CausticPhotons traceCausticPhotons(const SceneTracer& tracer, const PhotonSettings& settings, Stream stream,
+                                   const char* title);
 
 class PhotonMap {
 public:
