@@ -52,7 +52,7 @@ struct SolveCli {
     double maxMemoryGiB = 0;
     int viewSpp = 4;
     CLI::Option *patches = nullptr, *perObject = nullptr, *ffRays = nullptr, *ffNoise = nullptr,
-                *vertexRadiosity = nullptr;
+                *specularRays = nullptr, *vertexRadiosity = nullptr;
 
     // The options as the solve takes them, with what the command line leaves to depend on others.
     SolveOptions resolved(const CommonOptions& common) const {
@@ -79,14 +79,8 @@ struct RenderCli {
     double exposure = 0;
     GatherSettings gather;
     PhotonSettings photons;
+    CLI::Option* photonsOption = nullptr;
 };
-
-// Whether `text` is a whole finite number (strtod reads "nan" and "inf"), put into `v`.
-bool finiteNumber(const std::string& text, double& v) {
-    char* end = nullptr;
-    v = std::strtod(text.c_str(), &end);
-    return end != text.c_str() && *end == 0 && std::isfinite(v);
-}
 
 // Any positive number: one short message, where CLI11's own check quotes the largest double.
 const CLI::Validator kPositive(
@@ -164,6 +158,7 @@ void addSolveOptions(CLI::App* cmd, SolveCli& s) {
         if (std::string(e.key) == "patches_per_object") s.perObject = option;
         if (std::string(e.key) == "ff_rays") s.ffRays = option;
         if (std::string(e.key) == "ff_noise") s.ffNoise = option;
+        if (std::string(e.key) == "specular_rays") s.specularRays = option;
     }
     std::string solverHelp;
     for (const SolverInfo& e : solverRegistry())
@@ -236,7 +231,7 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
     outputs.write("report.json",
                   [&](const std::string& path) { writeFileAtomic(path, reportJson(scene, r, peakMemoryBytes())); });
     outputs.commit();
-    const double m2 = scene.metresPerUnit * scene.metresPerUnit;  // inside units to m^2 and W
+    const double m2 = scene.squareMetresPerUnit();  // inside units to m^2 and W
     logInfo("wrote ", s.out, ": ", r.patches.size(), " patches, emitted ", r.power.totalEmitted.sum() * m2,
             " W, absorbed ", r.power.totalAbsorbed.sum() * m2, " W, escaped ", r.power.escaped.sum() * m2, " W");
     return 0;
@@ -279,12 +274,28 @@ SolveResult solutionFor(const Scene& scene, const RenderCli& c, SolveCli& s, con
     }
     logInfo("no --solution given: solving first");
     SolveOptions options = s.resolved(common);
-    // A solve for final-gathered images need not be quieter than they are.
-    if (gatherSpp > 0 && s.ffNoise->count() == 0) {
-        options.formFactors.objectNoise = formFactorNoiseFor(gatherSpp);
-        if (options.formFactors.objectNoise != s.options.formFactors.objectNoise)
-            logInfo("form factors: --ff-noise ", options.formFactors.objectNoise, " for images of ", gatherSpp,
-                    " samples per pixel, whose own noise hides the solve's below it");
+    // A solve for final-gathered images of few samples need not be quieter than they are
+    // (gatherEffortFor); what the command line gives stays.
+    if (gatherSpp > 0) {
+        const GatherEffort e = gatherEffortFor(gatherSpp);
+        std::string chosen;
+        if (s.ffNoise->count() == 0 && e.ffNoise != options.formFactors.objectNoise) {
+            options.formFactors.objectNoise = e.ffNoise;
+            chosen += cat(", --ff-noise ", e.ffNoise);
+        }
+        if (s.patches->count() == 0 && e.patches < 1 && !(options.refine.tolerance > 0) &&
+            !(options.meshing.patchSize > 0)) {
+            options.meshing.targetPatches = int(std::lround(options.meshing.targetPatches * e.patches));
+            chosen += cat(", --patches ", options.meshing.targetPatches);
+        }
+        if (s.specularRays->count() == 0 && e.specularPaths < 1 && scene.hasSpecular()) {
+            options.specular.pathsPerPatch =
+                std::max(1, int(std::lround(options.specular.pathsPerPatch * e.specularPaths)));
+            chosen += cat(", --specular-rays ", options.specular.pathsPerPatch);
+        }
+        if (!chosen.empty())
+            logInfo("for images of ", gatherSpp,
+                    " samples per pixel, whose own noise hides the solve's below it: ", chosen.substr(2));
     }
     // Nor need its corners show the light at each vertex where the gather reads none of them
     // (SolveOptions::forSolvedIndirectGather): the same image, bit for bit, without the Cornell box's
@@ -305,6 +316,15 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     if (ext != ".exr" && ext != ".hdr") throw Error(cat("--out ", c.out, ": expected an .exr or .hdr file name"));
     const int spp = c.spp > 0 ? c.spp : entry.defaultSpp;
     c.gather.solvedIndirect = c.indirect == "solution";
+    // Nor need the caustic photons of a final-gathered image of few samples be more (gatherEffortFor).
+    if (integrator == "final-gather" && c.photonsOption->count() == 0 && scene.hasSpecular()) {
+        const double share = gatherEffortFor(spp).photons;
+        if (share < 1) {
+            c.photons.photons = std::max<int64_t>(1, std::llround(double(c.photons.photons) * share));
+            logInfo("caustic photons: ", c.photons.photons, " for images of ", spp,
+                    " samples per pixel, whose own noise hides theirs below it");
+        }
+    }
     // One camera, or a turntable of them: OUT-000.exr, OUT-001.exr, ... and OUT-orbit.json, each
     // image with its preview; all appear together, or none (output_set.h), and --out is checked now.
     std::vector<std::string> names{out.filename().string()};
@@ -441,7 +461,7 @@ int runReference(ReferenceCli& c, const CommonOptions& common) {
     if (!tracer.hasEmitters()) throw Error(cat(c.scene, ": no object emits light: every radiosity is zero"));
     c.settings.seed = common.seed;
     ObjectReferenceSettings inside = c.settings;  // --min-area in the scene's inside units
-    inside.minArea /= scene.metresPerUnit * scene.metresPerUnit;
+    inside.minArea /= scene.squareMetresPerUnit();
     Timer timer;
     const std::vector<ObjectEstimate> estimates = pathObjectRadiosity(tracer, inside);
     const double seconds = timer.seconds();
@@ -580,9 +600,8 @@ int main(int argc, char** argv) {
                      "Final gather: hits nearer than this many patch radii are shaded one bounce deeper")
         ->capture_default_str()
         ->check(inRange(0.0, 1000.0));
-    renderCmd->add_option("--photons", render.photons.photons, "Caustic photons emitted")
-        ->capture_default_str()
-        ->check(inRange(1, double(int64_t(1) << 34)));
+    render.photonsOption = renderCmd->add_option("--photons", render.photons.photons, "Caustic photons emitted");
+    render.photonsOption->capture_default_str()->check(inRange(1, double(int64_t(1) << 34)));
     renderCmd
         ->add_option("--photon-aim", render.photons.aim,
                      "Aim the caustic photons at spheres around the mirrors and glass (only those count; false: "

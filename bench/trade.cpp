@@ -32,7 +32,7 @@
 namespace penumbra::bench {
 
 double Setting::ffNoise() const {
-    return method == "final-gather" ? formFactorNoiseFor(spp) : FormFactorSettings{}.objectNoise;
+    return method == "final-gather" ? gatherEffortFor(spp).ffNoise : FormFactorSettings{}.objectNoise;
 }
 
 namespace {
@@ -114,7 +114,14 @@ std::vector<Setting> planRuns(const Scene& scene, bool quick, const Baseline& b)
              [](Setting& s, int v) { s.specularRays = v; });
     }
     vary(plan, b, gather, "gather-rays", quick ? Ints{4} : Ints{4, 64}, [](Setting& s, int v) { s.gatherRays = v; });
-    vary(plan, b, gather, "spp", quick ? Ints{1} : Ints{1, 4, 8, 32, 64}, [](Setting& s, int v) { s.spp = v; });
+    // The final gather's solve and photons as `render` makes them for an image of that many samples.
+    vary(plan, b, gather, "spp", quick ? Ints{1} : Ints{1, 4, 8, 32, 64}, [](Setting& s, int v) {
+        const GatherEffort e = gatherEffortFor(v);
+        s.spp = v;
+        s.patches = int(std::lround(s.patches * e.patches));
+        s.photons = std::llround(double(s.photons) * e.photons);
+        s.specularRays = std::max(1, int(std::lround(s.specularRays * e.specularPaths)));
+    });
     vary(plan, b, {"radiosity"}, "spp", quick ? Ints{16} : Ints{1, 16}, [](Setting& s, int v) { s.spp = v; });
     // Combinations along the diagonal, coarse and fast to fine and slow: (patches, spp, gather rays),
     // the fast ones with a looser cubature (the gather reads B one bounce later, where its error fades).

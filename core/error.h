@@ -25,6 +25,10 @@ std::string cat(const Parts&... parts) {
 // messages that compare a value with a limit it barely misses.
 std::string exact(double v);
 
+// Whether `text` is, whole, a finite number (strtod alone reads "nan" and "inf", and stops where the
+// number does), put into `v`: for option values and the numbers of mesh files.
+bool finiteNumber(const std::string& text, double& v);
+
 [[noreturn]] void checkFailed(const char* file, int line, const std::string& what);
 
 }  // namespace penumbra

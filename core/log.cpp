@@ -3,7 +3,9 @@
 #include <atomic>
 #include <charconv>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -62,6 +64,12 @@ std::string exact(double v) {
     char text[32];
     const auto end = std::to_chars(text, text + sizeof text, v).ptr;
     return std::string(text, end);
+}
+
+bool finiteNumber(const std::string& text, double& v) {
+    char* end = nullptr;
+    v = std::strtod(text.c_str(), &end);
+    return end != text.c_str() && *end == 0 && std::isfinite(v);
 }
 
 void checkFailed(const char* file, int line, const std::string& what) {

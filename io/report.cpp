@@ -59,7 +59,7 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
         ++patchCount[o];
     }
     // Inside units to m^2 and W (Scene::metresPerUnit; 1 for all but the tiniest and largest scenes).
-    const double m2 = scene.metresPerUnit * scene.metresPerUnit;
+    const double m2 = scene.squareMetresPerUnit();
     Json report;
     Json& objs = report["objects"];
     objs = Json::object();
@@ -158,7 +158,7 @@ std::string objectReferenceJson(const Scene& scene, const std::vector<ObjectEsti
         const ObjectEstimate& e = estimates[o];
         if (e.samples == 0) continue;
         points += e.samples;
-        objs[scene.objects[o].name] = {{"area_m2", e.area * scene.metresPerUnit * scene.metresPerUnit},
+        objs[scene.objects[o].name] = {{"area_m2", e.area * scene.squareMetresPerUnit()},
                                        {"radiosity_mean", rgbJson(e.radiosity)},
                                        {"std_error", rgbJson(e.stdError)},
                                        {"relative_error", e.relativeError},

@@ -127,9 +127,8 @@ void checkPly(std::istream& in, uintmax_t size, const std::string& where) {
     auto value = [&](const std::string& type, const std::string& at) {
         if (ascii) {
             if (!(in >> token)) throw Error(cat(where, ": its data ends inside ", at));
-            char* end = nullptr;
-            const double v = std::strtod(token.c_str(), &end);
-            if (*end != '\0' || !std::isfinite(v))
+            double v = 0;
+            if (!finiteNumber(token, v))
                 throw Error(cat(where, ": ", at, ": '", token.substr(0, 24), "' is not a finite number"));
             return v;
         }
@@ -182,10 +181,9 @@ void checkMeshFile(const std::string& path, const std::string& ext, const std::s
     auto checkCoordinates = [&](std::istringstream& words, const std::string& at) {
         for (int k = 0; k < 3; ++k) {
             std::string token;
-            char* end = nullptr;
+            double v = 0;
             if (!(words >> token)) throw Error(cat(where, at, ": a vertex needs three coordinates"));
-            const double v = std::strtod(token.c_str(), &end);
-            if (*end != '\0' || !std::isfinite(v))
+            if (!finiteNumber(token, v))
                 throw Error(cat(where, at, ": vertex coordinate '", token.substr(0, 24), "' is not a finite number"));
         }
     };

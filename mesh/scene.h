@@ -78,6 +78,9 @@ struct Scene {
 
     // Inside lengths per scene unit: what a camera given in scene units is multiplied by.
     double sceneUnit() const { return unitScale / metresPerUnit; }
+    // Square metres per inside area unit, which is also watts per inside power unit (radiance has no
+    // length in it): what the report's and the log's areas and powers are multiplied by.
+    double squareMetresPerUnit() const { return metresPerUnit * metresPerUnit; }
     bool hasEmitter() const;
     bool hasSpecular() const;
     const Material& materialOf(const SceneObject& o) const { return materials[size_t(o.material)]; }

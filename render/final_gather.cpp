@@ -135,10 +135,15 @@ template Rgb FinalGather::reflected(const SurfaceHit&, PixelSampler&, int) const
 template Rgb FinalGather::trace(const Vec3&, const Vec3&, Rng&, int) const;
 template Rgb FinalGather::trace(const Vec3&, const Vec3&, PixelSampler&, int) const;
 
-double formFactorNoiseFor(int samplesPerPixel) {
-    const double kNoise = FormFactorSettings{}.objectNoise;
+GatherEffort gatherEffortFor(int samplesPerPixel) {
     constexpr int kFullSamples = 16;
-    return kNoise * std::sqrt(double(kFullSamples) / double(std::clamp(samplesPerPixel, 1, kFullSamples)));
+    const double e = std::sqrt(double(std::clamp(samplesPerPixel, 1, kFullSamples)) / kFullSamples);
+    GatherEffort effort;
+    effort.ffNoise = FormFactorSettings{}.objectNoise / e;
+    effort.photons = e;
+    effort.specularPaths = std::sqrt(e);
+    effort.patches = std::sqrt(std::sqrt(e));
+    return effort;
 }
 
 Image renderFinalGather(const FinalGather& gather, const Camera& camera, int samplesPerPixel, uint64_t seed) {

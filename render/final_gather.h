@@ -78,12 +78,22 @@ private:
 
 Image renderFinalGather(const FinalGather& gather, const Camera& camera, int samplesPerPixel, uint64_t seed);
 
-// The form factors' noise target (--ff-noise) of a solve made for final-gathered images of
-// `samplesPerPixel`: the solve's default (0.5%) from 16 samples up, and as 1/sqrt(samples) above it
-// below (2% at 1 sample), where the image's own noise hides the solve's. Cornell box, 256x256, seeds
-// 1-2: at 1 spp 0.80-0.84% in 0.32-0.35 s with 0.5%, 0.83-0.87% in 0.26 s with 2%; at 16 spp 0.47%
-// with 0.5%, 0.53-0.55% with no rays cast again (docs/performance.md).
-double formFactorNoiseFor(int samplesPerPixel);
+// What a solve and its photon map made for final-gathered images of `samplesPerPixel` need: the
+// defaults from 16 samples up; below, where the image's own noise hides more of theirs, an effort
+// e = sqrt(samples / 16) (1/4 at 1 sample, 1/2 at 4) sets the form factors' noise target to the
+// default over e (2% at 1 sample), the photons to e times the default, the solve's specular paths to
+// sqrt(e) times and the patches to e^(1/4) times it (0.71 at 1 sample): each term by how much of the
+// image's error it makes. Measured at 1 spp, 256x256, seeds 1-2 (docs/performance.md): the Cornell
+// box 0.82-0.85% in 0.27 s with 3,000 patches, 0.92% in 0.20 s with 2,000, 1.00% at 1,500; cornell-
+// glass 0.87-0.94% in 0.51-0.56 s with 3,000 patches and 1 M photons, 1.14-1.18% in 0.31 s with 2,000,
+// 250,000 and 48 specular paths.
+struct GatherEffort {
+    double ffNoise = 0;        // the form factors' noise target (--ff-noise)
+    double photons = 1;        // times the default photons (--photons)
+    double specularPaths = 1;  // times the default specular paths a patch (--specular-rays)
+    double patches = 1;        // times the default patch count (--patches)
+};
+GatherEffort gatherEffortFor(int samplesPerPixel);
 
 // The corner values shifted, patch by patch, so that their mean (the mean of the interpolation over
 // the patch) is the patch's radiosity `means`. What a gather ray reads where it lands: the displayed

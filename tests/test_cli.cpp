@@ -480,22 +480,40 @@ TEST(CliErrors, RenderWithoutCameraIsRefused) {
 }
 
 TEST(Cli, ASolveForFewSamplesIsNoQuieterThanTheImage) {
-    // render without --solution sets the form factors' noise target by its samples per pixel
-    // (formFactorNoiseFor: 2% at 1 spp), unless --ff-noise is given or the image is no final gather.
-    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
+    // render without --solution makes its solve and photons for an image of few samples per pixel
+    // (gatherEffortFor: at 1 spp --ff-noise 0.02, 0.71 x the patches, half the specular paths, a
+    // quarter of the photons), unless the option is given or the image is no final gather.
+    const std::string box = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-box.json";
+    const std::string glass = std::string(PENUMBRA_SOURCE_DIR) + "/scenes/cornell-glass.json";
     const std::string out = test::tempDir() + "/few";
-    const std::string common = cat(" --patches 100 --form-factors rays --resolution 16x16 -v --out ", out, ".exr");
-    // The log line naming the target the render chose, or "" where it kept the solve's own.
-    auto chosen = [&](const std::string& options) {
+    const std::string common = cat(" --form-factors rays --resolution 16x16 -v --out ", out, ".exr");
+    // The log lines naming what the render chose for the image ("" where it kept the defaults).
+    auto chosen = [&](const std::string& scene, const std::string& options) {
         const CommandResult r = run(cat("render ", scene, common, options));
         EXPECT_EQ(r.status, 0) << r.output;
-        const size_t at = r.output.find("--ff-noise ");
-        return at == std::string::npos ? std::string() : r.output.substr(at, r.output.find('\n', at) - at);
+        std::string lines;
+        for (const char* what : {"whose own noise hides the solve's", "whose own noise hides theirs"}) {
+            const size_t at = r.output.find(what);
+            if (at == std::string::npos) continue;
+            const size_t begin = r.output.rfind('\n', at) + 1;
+            lines += r.output.substr(begin, r.output.find('\n', at) - begin) + "\n";
+        }
+        return lines;
     };
-    EXPECT_NE(chosen(" --spp 1").find("--ff-noise 0.02 for images of 1 samples"), std::string::npos);
-    EXPECT_EQ(chosen(" --spp 1 --ff-noise 0.005"), "");
-    EXPECT_EQ(chosen(" --spp 16"), "");
-    EXPECT_EQ(chosen(" --spp 1 --integrator radiosity"), "");
+    const std::string one = chosen(box, " --spp 1");
+    EXPECT_NE(one.find("--ff-noise 0.02, --patches 2121"), std::string::npos) << one;
+    EXPECT_EQ(one.find("specular"), std::string::npos) << "no mirrors or glass: " << one;
+    EXPECT_EQ(one.find("photons"), std::string::npos) << one;
+    const std::string given = chosen(box, " --spp 1 --patches 100");
+    EXPECT_NE(given.find("--ff-noise 0.02"), std::string::npos) << given;
+    EXPECT_EQ(given.find("--patches"), std::string::npos) << given;
+    EXPECT_EQ(chosen(box, " --spp 1 --patches 100 --ff-noise 0.005"), "");
+    EXPECT_EQ(chosen(box, " --spp 16 --patches 100"), "");
+    EXPECT_EQ(chosen(box, " --spp 1 --integrator radiosity --patches 100"), "");
+    const std::string caustics = chosen(glass, " --spp 4 --patches 300");
+    EXPECT_NE(caustics.find("--ff-noise 0.01, --specular-rays 68"), std::string::npos) << caustics;
+    EXPECT_NE(caustics.find("caustic photons: 500000 for images of 4"), std::string::npos) << caustics;
+    EXPECT_EQ(chosen(glass, " --spp 4 --patches 300 --ff-noise 0.005 --specular-rays 96 --photons 1000000"), "");
 }
 
 TEST(Cli, GlassSceneRendersWithoutASolutionAndAgainstThePathTracer) {

@@ -193,10 +193,14 @@ void foldNearHits(FormFactorMatrix::SparseRow row, const std::vector<HitReadings
         }
         moves.push_back({hit.patch, float(-moved)});
     }
+    out.clear();
+    if (moves.empty()) {  // nothing to fold: the row as it is
+        for (size_t k = 0; k < row.count; ++k) out.push_back({row.column[k], row.value[k]});
+        return;
+    }
     std::sort(moves.begin(), moves.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
     // Per column of the result: the row's entry and the moves' sum.
     static thread_local std::vector<std::pair<float, float>> parts;
-    out.clear();
     parts.clear();
     out.reserve(row.count + moves.size());
     size_t k = 0, m = 0;
