@@ -1,7 +1,6 @@
 #include "render/path_tracer.h"
 
 #include "core/optics.h"
-#include "core/parallel.h"
 #include "render/camera.h"
 #include "render/photon_map.h"
 
@@ -117,33 +116,31 @@ Image lightPathsToEye(const SceneTracer& tracer, const Camera& camera, int64_t p
     settings.photons = paths;
     settings.seed = seed;
     settings.maxDepth = maxBounces;
-    const CausticPhotons photons = traceCausticPhotons(tracer, settings, Stream::LightPaths, "light paths");
     const PinholeCamera eye(camera);
     const double pixelArea = eye.pixelArea();
     struct Splat {
-        size_t pixel;
-        Rgb value;
+        uint32_t pixel;
+        Eigen::Vector3f value;
     };
-    std::vector<std::vector<Splat>> splats(photons.chunks.size());
-    parallelFor(int64_t(splats.size()), [&](int64_t c0, int64_t c1) {
-        prepareTracingThread();
-        for (int64_t c = c0; c < c1; ++c)
-            for (const PhotonLanding& l : photons.chunks[size_t(c)]) {
+    std::vector<std::vector<Splat>> splats;  // per chunk of photons, added in chunk order
+    traceCausticPhotons(
+        tracer, settings, Stream::LightPaths, "light paths", [&](int64_t chunks) { splats.resize(size_t(chunks)); },
+        [&](int64_t c, const std::vector<PhotonLanding>& landings) {
+            for (const PhotonLanding& l : landings) {
                 const Vec3 toEye = eye.origin() - l.hit.point;
                 const double distance = toEye.norm(), cosSurface = l.hit.normal.dot(toEye) / distance;
                 double px, py, cosAxis;
                 if (!(cosSurface > 0) || !eye.project(l.hit.point, px, py, cosAxis)) continue;
                 if (!tracer.visible(tracer.offset(l.hit, toEye), eye.origin())) continue;
-                const size_t pixel = size_t(int(py)) * size_t(camera.width) + size_t(int(px));
-                splats[size_t(c)].push_back(
-                    {pixel, l.power * l.hit.material->reflectance * kInvPi * cosSurface /
-                                (distance * distance * cosAxis * cosAxis * cosAxis * pixelArea)});
+                const Rgb value = l.power * l.hit.material->reflectance * kInvPi * cosSurface /
+                                  (distance * distance * cosAxis * cosAxis * cosAxis * pixelArea);
+                splats[size_t(c)].push_back({uint32_t(int(py) * camera.width + int(px)), value.matrix().cast<float>()});
             }
-    });
-    Image image(camera.width, camera.height);
+        });
     std::vector<Rgb> sum(size_t(camera.width) * size_t(camera.height), Rgb::Zero());
     for (const std::vector<Splat>& chunk : splats)
-        for (const Splat& s : chunk) sum[s.pixel] += s.value;
+        for (const Splat& s : chunk) sum[s.pixel] += s.value.cast<double>().array();
+    Image image(camera.width, camera.height);
     for (int y = 0; y < camera.height; ++y)
         for (int x = 0; x < camera.width; ++x) image.set(x, y, sum[size_t(y) * size_t(camera.width) + size_t(x)]);
     return image;

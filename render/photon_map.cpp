@@ -169,21 +169,24 @@ struct PhotonMap::Impl {
     std::unique_ptr<KdTree<IrradiancePoint>> precomputedTree;
 };
 
-CausticPhotons traceCausticPhotons(const SceneTracer& tracer, const PhotonSettings& settings, Stream stream,
-                                   const char* title) {
-    CausticPhotons out;
-    PhotonStats& stats = out.stats;
+PhotonStats traceCausticPhotons(const SceneTracer& tracer, const PhotonSettings& settings, Stream stream,
+                                const char* title, const std::function<void(int64_t chunks)>& begin,
+                                const std::function<void(int64_t chunk, const std::vector<PhotonLanding>&)>& land) {
+    PhotonStats stats;
     const int64_t emitting = tracer.hasEmitters() ? settings.photons : 0;
     const std::vector<Target> targets = settings.aim ? specularTargets(tracer) : std::vector<Target>{};
     const int64_t aimed = settings.aim ? aimedPhotons(tracer, targets, emitting, settings.seed) : 0;
     const int64_t n = aimed > 0 ? aimed : emitting;  // photons traced
     const int64_t chunks = (n + kChunk - 1) / kChunk;
-    out.chunks.resize(static_cast<size_t>(chunks));
-    std::vector<Rgb> emitted(static_cast<size_t>(chunks), Rgb::Zero());
+    begin(chunks);
+    std::vector<Rgb> emitted(static_cast<size_t>(chunks), Rgb::Zero()), stored(emitted);
+    std::vector<int64_t> count(static_cast<size_t>(chunks), 0);
     Progress progress(title, chunks);
     parallelFor(chunks, [&](int64_t c0, int64_t c1) {
         prepareTracingThread();
+        std::vector<PhotonLanding> landings;
         for (int64_t c = c0; c < c1; ++c) {
+            landings.clear();
             for (int64_t k = c * kChunk; k < std::min(n, (c + 1) * kChunk); ++k) {
                 Rng rng = streamRng(settings.seed, stream, uint64_t(k));
                 const EmitterSample e = tracer.sampleEmitter(rng);
@@ -206,36 +209,44 @@ CausticPhotons traceCausticPhotons(const SceneTracer& tracer, const PhotonSettin
                 emitted[size_t(c)] += power;
                 SpecularWalk w = walkSpecular(tracer, tracer.trace(e.point + tracer.epsilon() * e.normal, d), d, rng,
                                               settings.maxDepth);
-                if (w.end == WalkEnd::Diffuse && w.bounces > 0 && w.hit.frontFacing(w.dir))
-                    out.chunks[size_t(c)].push_back({std::move(w.hit), w.dir, Rgb(power * w.throughput)});
+                if (w.end == WalkEnd::Diffuse && w.bounces > 0 && w.hit.frontFacing(w.dir)) {
+                    landings.push_back({std::move(w.hit), w.dir, Rgb(power * w.throughput)});
+                    stored[size_t(c)] += landings.back().power;
+                }
             }
+            count[size_t(c)] = int64_t(landings.size());
+            land(c, landings);
             progress.update();
         }
     });
     progress.done();
-    for (size_t c = 0; c < out.chunks.size(); ++c) {
+    for (size_t c = 0; c < emitted.size(); ++c) {
         (aimed > 0 ? stats.aimedPower : stats.emittedPower) += emitted[c];
-        for (const PhotonLanding& l : out.chunks[c]) stats.storedPower += l.power;
-        stats.stored += int64_t(out.chunks[c].size());
+        stats.storedPower += stored[c];
+        stats.stored += count[c];
     }
     stats.emitted = emitting;
     stats.aimed = aimed;
     if (aimed > 0) stats.emittedPower = tracer.emittedPower();
-    return out;
+    return stats;
 }
 
 PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
     : impl_(std::make_unique<Impl>()), nearest_(settings.nearest) {
     Timer timer;
     maxRadius_ = settings.maxRadius * tracer.diagonal();
-    const CausticPhotons photons = traceCausticPhotons(tracer, settings, Stream::Photons, "photons");
-    stats_ = photons.stats;
+    std::vector<std::vector<Photon>> stored;
+    stats_ = traceCausticPhotons(
+        tracer, settings, Stream::Photons, "photons", [&](int64_t chunks) { stored.resize(size_t(chunks)); },
+        [&](int64_t c, const std::vector<PhotonLanding>& landings) {
+            for (const PhotonLanding& l : landings)
+                stored[size_t(c)].push_back(
+                    {l.hit.point.cast<float>(), l.hit.normal.cast<float>(), l.power.matrix().cast<float>()});
+        });
+    for (const std::vector<Photon>& chunk : stored)
+        impl_->cloud.points.insert(impl_->cloud.points.end(), chunk.begin(), chunk.end());
     g_photonsEmitted.add(uint64_t(stats_.emitted));
     g_photonsStored.add(uint64_t(stats_.stored));
-    for (const std::vector<PhotonLanding>& chunk : photons.chunks)
-        for (const PhotonLanding& l : chunk)
-            impl_->cloud.points.push_back(
-                {l.hit.point.cast<float>(), l.hit.normal.cast<float>(), l.power.matrix().cast<float>()});
     impl_->tree = std::make_unique<KdTree<Photon>>(3, impl_->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
     if (settings.precompute > 0 && !impl_->cloud.points.empty()) {
         const size_t stride = size_t(settings.precompute), count = (impl_->cloud.points.size() + stride - 1) / stride;

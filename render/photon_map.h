@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -48,17 +49,16 @@ struct PhotonLanding {
     Rgb power;
 };
 
-struct CausticPhotons {
-    std::vector<std::vector<PhotonLanding>> chunks;  // the landings, chunk by chunk in the order traced
-    PhotonStats stats;                               // all but the seconds
-};
-
-// The caustic photons' pass, which the map stores and the path tracer's light paths connect to the
-// camera (render/path_tracer.h): settings.photons emitted, aimed at the mirrors and glass where that
-// pays, each from its own stream of `stream` and the seed, in chunks, so that the landings come out
-// in one order whatever the thread count. `title` names the progress bar.
-CausticPhotons traceCausticPhotons(const SceneTracer& tracer, const PhotonSettings& settings, Stream stream,
-                                   const char* title);
+// The caustic photons' pass, which the map stores and the path tracer's light paths join to the
+// eye (render/path_tracer.h): settings.photons emitted, aimed at the mirrors and glass where that
+// pays, each from its own stream of `stream` and the seed, in chunks. `begin(chunks)` is called once
+// first; then `land(chunk, landings)` with each chunk's landings in the order traced, from the worker
+// threads (each chunk once), so that a caller that keeps each chunk's share apart and merges them in
+// chunk order gets one result whatever the thread count, and no more than a chunk's landings are
+// held at a time. `title` names the progress bar. Returns all of PhotonStats but the seconds.
+PhotonStats traceCausticPhotons(const SceneTracer& tracer, const PhotonSettings& settings, Stream stream,
+                                const char* title, const std::function<void(int64_t chunks)>& begin,
+                                const std::function<void(int64_t chunk, const std::vector<PhotonLanding>&)>& land);
 
 class PhotonMap {
 public:
