@@ -108,6 +108,10 @@ OutputSet::OutputSet(const std::string& dir, const std::vector<std::string>& nam
             discard();
             throw Error(cat(dir_, ": cannot write here: ", why(error)));
         }
+        // Test hook (tests/test_outputs.cpp): the file named here, which the test holds locked as a
+        // third run would, takes the lock's name between this run's open and its flock.
+        if (const char* third = std::getenv("PENUMBRA_TEST_LOCK_SWAP"); third && attempt == 0)
+            std::rename(third, lock_.c_str());
         if (flock(lockFd_, LOCK_EX | LOCK_NB) != 0) {
             close(lockFd_);
             lockFd_ = -1;  // another run's lock file: not ours to remove

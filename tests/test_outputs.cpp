@@ -181,6 +181,30 @@ TEST(Outputs, ASecondRunIntoAFolderBeingWrittenIsRefused) {
     ::close(fd);
 }
 
+TEST(Outputs, ALockFileReplacedBetweenOpenAndLockIsOpenedAgain) {
+    // Run A removes its lock file as it ends; run B opened that file just before and locks it after;
+    // run C made a new one and locked it: B and C would both write. Here the test is C: its locked
+    // file takes the lock's name between B's open and B's flock (PENUMBRA_TEST_LOCK_SWAP). B must see
+    // that the file it locked is no longer the one the name leads to, open the name again, and find
+    // C's lock.
+    const std::string out = test::tempDir() + "/swapped";
+    fs::remove_all(out);
+    fs::create_directories(out);
+    const std::string third = out + "/third.lock";
+    const int fd = ::open(third.c_str(), O_RDWR | O_CREAT, 0644);
+    ASSERT_GE(fd, 0);
+    ASSERT_EQ(flock(fd, LOCK_EX | LOCK_NB), 0);
+    setenv("PENUMBRA_TEST_LOCK_SWAP", third.c_str(), 1);
+    const CommandResult r = run(cat("solve ", smallScene(), " --out ", out, " --patches 20"));
+    unsetenv("PENUMBRA_TEST_LOCK_SWAP");
+    EXPECT_NE(r.status, 0) << r.output;
+    EXPECT_EQ(errorLines(r.output), 1u) << r.output;
+    EXPECT_NE(r.output.find("another penumbra run is writing"), std::string::npos) << r.output;
+    EXPECT_EQ(contents(out), (std::map<std::string, std::string>{{".penumbra.lock", ""}}))
+        << "C's lock, and nothing new";
+    ::close(fd);
+}
+
 // SIGTERM at several moments of `command` (penumbra's arguments, OUT standing for a fresh folder
 // under the test's, which the command writes into): the run exits with 128 + 15 and leaves OUT as
 // it was (absent unless `made`, then empty), or it had finished and left `whole` there. Returns how
