@@ -2,16 +2,20 @@
 // options are those of shared/CONTRACT.md plus extensions listed in `penumbra --help`.
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <optional>
 #include <sstream>
 #include <thread>
 #include <tuple>
 
 #include "allocator.h"
 #include "bench/trade.h"
+#include "core/cluster.h"
 #include "core/counters.h"
 #include "core/error.h"
 #include "core/log.h"
@@ -188,14 +192,50 @@ void addSolveOptions(CLI::App* cmd, SolveCli& s) {
 }
 
 void setupLogging(const CommonOptions& c) {
-    setLogLevel(c.quiet ? LogLevel::Warning : c.verbose ? LogLevel::Debug : LogLevel::Info);
-    setThreadCount(c.threads);
+    // Under mpirun the leader logs; the other ranks say only their own errors (cluster.h).
+    setLogLevel(!cluster::leader() ? LogLevel::Error
+                : c.quiet          ? LogLevel::Warning
+                : c.verbose        ? LogLevel::Debug
+                                   : LogLevel::Info);
+    int threads = c.threads;
+    if (threads == 0 && cluster::ranksOnHost() > 1) {
+        // The host's cores shared among its ranks, unless mpirun already bound each to its own.
+        const int cores = int(std::thread::hardware_concurrency()), usable = threadCount();
+        threads = usable < cores ? usable : std::max(1, usable / cluster::ranksOnHost());
+    }
+    setThreadCount(threads);
     logDebug("memory: ", allocatorName());
+}
+
+// Under mpirun, each rank's host, once.
+void logRanks() {
+    if (!cluster::distributed()) return;
+    std::string ranks;
+    for (int r = 0; r < cluster::size(); ++r) ranks += cat(r ? ", " : "", cluster::rankName(r));
+    logInfo("mpirun: ", cluster::size(), " ranks (", ranks, "), threads per rank: ", threadCount());
+}
+
+// Under mpirun, a command that one rank does (export, compare, reference): the leader runs it, the
+// others wait for it asleep. The viewer and the bench (which times one process) are refused.
+int onLeader(const char* command, const std::function<int()>& run) {
+    if (cluster::distributed() && (std::string(command) == "view" || std::string(command) == "bench"))
+        throw Error(cat(command, " runs in one process: start it without mpirun"));
+    int status = 0;
+    if (cluster::leader()) {
+        const cluster::Alone alone;
+        status = run();
+    }
+    cluster::barrier();
+    return status;
 }
 
 constexpr double kMostUnshot = 1e-4;
 
 int runSolve(SolveCli& s, const CommonOptions& common) {
+    // Under mpirun the leader solves (the transport shared among the ranks: not yet, docs/distributed.md).
+    if (!cluster::leader()) return cluster::barrier(), 0;
+    std::optional<cluster::Alone> alone;
+    alone.emplace();
     const Scene scene = loadScene(s.scene);
     // The outputs appear as one set or not at all (output_set.h); --out is checked before the work.
     std::vector<std::string> names{"solution.bin", "convergence.csv", "report.json"};
@@ -230,6 +270,10 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
     }
     outputs.write("report.json",
                   [&](const std::string& path) { writeFileAtomic(path, reportJson(scene, r, peakMemoryBytes())); });
+    // Under mpirun the files go into place only once every rank is known to be alive: a rank lost
+    // before this leaves nothing behind.
+    alone.reset();
+    cluster::barrier();
     outputs.commit();
     const double m2 = scene.squareMetresPerUnit();  // inside units to m^2 and W
     logInfo("wrote ", s.out, ": ", r.patches.size(), " patches, emitted ", r.power.totalEmitted.sum() * m2,
@@ -261,7 +305,26 @@ Camera cameraFor(const Scene& scene, const RenderCli& c) {
 
 // The stored solution, or a solve made now; `gatherSpp` > 0: for final-gathered images of that many
 // samples per pixel.
+SolveResult solveOrRead(const Scene& scene, const RenderCli& c, SolveCli& s, const CommonOptions& common,
+                        int gatherSpp);
+
+// The stored solution, or a solve made now; `gatherSpp` > 0: for final-gathered images of that many
+// samples per pixel. Under mpirun the leader reads or solves it and sends it to the other ranks, and
+// every rank (the leader too) renders from the copy sent: the same bytes everywhere.
 SolveResult solutionFor(const Scene& scene, const RenderCli& c, SolveCli& s, const CommonOptions& common,
+                        int gatherSpp) {
+    if (!cluster::distributed()) return solveOrRead(scene, c, s, common, gatherSpp);
+    std::string bytes;
+    if (cluster::leader()) {
+        const cluster::Alone alone;
+        bytes = solutionBytes(solveOrRead(scene, c, s, common, gatherSpp));
+    }
+    bytes = cluster::broadcast(bytes);
+    logInfo("mpirun: the solution sent to every rank, ", double(bytes.size()) / (1 << 20), " MiB");
+    return solutionFromBytes(bytes, c.solution.empty() ? "the solution sent by rank 0" : c.solution);
+}
+
+SolveResult solveOrRead(const Scene& scene, const RenderCli& c, SolveCli& s, const CommonOptions& common,
                         int gatherSpp) {
     if (!c.solution.empty()) {
         SolveResult stored = readSolution((std::filesystem::path(c.solution) / "solution.bin").string());
@@ -340,7 +403,10 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
     for (const std::string& name : names) files.insert(files.end(), {name, previewPathFor(name)});
     const std::string orbitList = out.stem().string() + "-orbit.json";
     if (c.orbit > 0) files.push_back(orbitList);
-    OutputSet outputs(out.parent_path().string(), files, cat(".", out.filename().string(), ".lock"));
+    // Under mpirun every rank renders its share and the leader writes.
+    std::optional<OutputSet> outputs;
+    if (cluster::leader())
+        outputs.emplace(out.parent_path().string(), files, cat(".", out.filename().string(), ".lock"));
 
     // The geometry: the solve's patches, or (path tracer) the scene meshed as a solve would mesh it.
     SolveResult stored;
@@ -366,20 +432,22 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
         if (value > 0) counted += cat(counted.empty() ? "" : ", ", name, " ", value);
     logInfo("render counters: ", counted);
 
+    if (!cluster::leader()) return cluster::barrier(), 0;
     // Everything is rendered before the first file is written.
     std::vector<std::string> paths;  // where the images land, as the orbit list names them
     for (size_t k = 0; k < images.size(); ++k) {
-        outputs.write(names[k], [&](const std::string& path) { writeLinearImage(images[k], path); });
-        outputs.write(previewPathFor(names[k]),
-                      [&](const std::string& path) { writePreviewPng(images[k], path, c.exposure); });
+        outputs->write(names[k], [&](const std::string& path) { writeLinearImage(images[k], path); });
+        outputs->write(previewPathFor(names[k]),
+                       [&](const std::string& path) { writePreviewPng(images[k], path, c.exposure); });
         paths.push_back((out.parent_path() / names[k]).string());
     }
     const std::string list = (out.parent_path() / orbitList).string();
     if (c.orbit > 0)
-        outputs.write(orbitList, [&](const std::string& path) {
+        outputs->write(orbitList, [&](const std::string& path) {
             writeFileAtomic(path, orbitJson(cameras, paths, scene.sceneUnit()));
         });
-    outputs.commit();
+    cluster::barrier();  // every rank alive (as the solve's)
+    outputs->commit();
     if (c.orbit > 0) {
         logInfo("wrote ", images.size(), " orbit views ", paths.front(), " .. ", paths.back(), " and their cameras in ",
                 list, " (", camera.width, "x", camera.height, ", ", integrator, ", ", spp, " spp) in ", seconds, " s");
@@ -548,7 +616,20 @@ int runBenchCommand(bench::BenchOptions& options, const std::string& resolution)
 
 }  // namespace
 
+// An error under mpirun: one rank's alone would leave the others waiting for it, so the job ends
+// (cluster::abortJob). The leader says it; another rank first gives the leader two seconds, in which an
+// error that every rank meets (a bad scene) ends the job with the leader's message alone.
+int failed(const std::string& message, int code) {
+    if (!cluster::distributed()) {
+        std::fprintf(stderr, "penumbra: %s\n", message.c_str());
+        return code;
+    }
+    if (!cluster::leader()) std::this_thread::sleep_for(std::chrono::seconds(2));
+    cluster::abortJob(cluster::leader() ? message : cat(cluster::rankName(cluster::rank()), ": ", message), code);
+}
+
 int main(int argc, char** argv) {
+    cluster::start(&argc, &argv);  // under mpirun: joins the job (core/cluster.h)
     CLI::App app{"penumbra: global illumination by radiosity, photon mapping and final gathering"};
     app.require_subcommand(1);
     CommonOptions common;
@@ -729,40 +810,44 @@ int main(int argc, char** argv) {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
         // Help and version go out as CLI11 prints them; a bad option is one error line, exit 2.
-        if (e.get_exit_code() == 0) return app.exit(e);
-        std::fprintf(stderr, "penumbra: error: %s (see --help)\n", e.what());
+        if (e.get_exit_code() == 0) return cluster::leader() ? app.exit(e) : 0;
+        if (cluster::leader()) std::fprintf(stderr, "penumbra: error: %s (see --help)\n", e.what());
+        cluster::stop();
         return 2;
     }
     try {
         setupLogging(common);
         installSignalCleanup();
         holdLog();  // a refusal in the first second prints the error alone (core/log.h)
+        logRanks();
         const int status = [&] {
             if (*solveCmd) return runSolve(solve, common);
             if (*renderCmd) return runRender(render, renderSolve, common);
-            if (*exportCmd) return runExport(exportDir, exportOut, exportFormat, exportStops);
-            if (*compareCmd) return runCompare(compareImage, compareReference, compareScene, compareCamera);
-            if (*viewCmd) return runView(view, viewSolve, viewer, common);
-            if (*referenceCmd) return runReference(reference, common);
-            if (*benchCmd) {
-                benchOptions.seed = common.seed;
-                return runBenchCommand(benchOptions, benchResolution);
-            }
+            if (*exportCmd)
+                return onLeader("export", [&] { return runExport(exportDir, exportOut, exportFormat, exportStops); });
+            if (*compareCmd)
+                return onLeader(
+                    "compare", [&] { return runCompare(compareImage, compareReference, compareScene, compareCamera); });
+            if (*viewCmd) return onLeader("view", [&] { return runView(view, viewSolve, viewer, common); });
+            if (*referenceCmd) return onLeader("reference", [&] { return runReference(reference, common); });
+            if (*benchCmd)
+                return onLeader("bench", [&] {
+                    benchOptions.seed = common.seed;
+                    return runBenchCommand(benchOptions, benchResolution);
+                });
             return 0;
         }();
         releaseHeldLog();
+        cluster::stop();
         return status;
     } catch (const Error& e) {
         dropHeldLog();
-        std::fprintf(stderr, "penumbra: error: %s\n", e.what());
-        return 1;
+        return failed(cat("error: ", e.what()), 1);
     } catch (const std::bad_alloc&) {
         dropHeldLog();
-        std::fprintf(stderr, "penumbra: error: out of memory (lower --patches or the resolution)\n");
-        return 1;
+        return failed("error: out of memory (lower --patches or the resolution)", 1);
     } catch (const std::exception& e) {
         releaseHeldLog();  // what led to an internal error
-        std::fprintf(stderr, "penumbra: internal error: %s\n", e.what());
-        return 70;
+        return failed(cat("internal error: ", e.what()), 70);
     }
 }

@@ -54,7 +54,7 @@ struct Reader {
 
 }  // namespace
 
-void writeSolution(const std::string& path, const SolveResult& s) {
+std::string solutionBytes(const SolveResult& s) {
     PENUMBRA_CHECK_EQ(s.corners.size(), s.patches.size());
     Writer w;
     w.bytes.append(kMagic, 8);
@@ -77,13 +77,19 @@ void writeSolution(const std::string& path, const SolveResult& s) {
         for (const auto& corners : s.indirect)
             for (const Rgb& c : corners) w.put(c);
     w.put(s.metresPerUnit);
-    writeFileAtomic(path, w.bytes);
+    return std::move(w.bytes);
 }
+
+void writeSolution(const std::string& path, const SolveResult& s) { writeFileAtomic(path, solutionBytes(s)); }
 
 SolveResult readSolution(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw Error(cat(path, ": no solution here (solve the scene first with `penumbra solve SCENE --out DIR`)"));
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    return solutionFromBytes(bytes, path);
+}
+
+SolveResult solutionFromBytes(const std::string& bytes, const std::string& path) {
     const bool v01 = bytes.size() >= 8 && std::memcmp(bytes.data(), kMagic01, 8) == 0;
     const bool v02 = bytes.size() >= 8 && std::memcmp(bytes.data(), kMagic02, 8) == 0;
     const bool v03 = bytes.size() >= 8 && std::memcmp(bytes.data(), kMagic03, 8) == 0;

@@ -17,4 +17,9 @@ void writeSolution(const std::string& path, const SolveResult& solved);
 // when it is missing, not a solution, or damaged.
 SolveResult readSolution(const std::string& path);
 
+// The same as bytes in memory (what writeSolution writes; the solve a render makes, sent to the other
+// ranks of an MPI job), and back; `path` names them in errors.
+std::string solutionBytes(const SolveResult& solved);
+SolveResult solutionFromBytes(const std::string& bytes, const std::string& path);
+
 }  // namespace penumbra

@@ -1,8 +1,11 @@
 #include "render/film.h"
 
 #include <cmath>
+#include <cstring>
 
+#include "core/cluster.h"
 #include "core/counters.h"
+#include "core/error.h"
 #include "core/parallel.h"
 #include "core/progress.h"
 #include "core/rng.h"
@@ -44,6 +47,44 @@ float edgeContrast(const std::vector<float>& contrast, int w, int h, int x, int6
     return most;
 }
 
+// Under mpirun each rank renders bands of kBand rows dealt out in turn (interleaved, so that each
+// gets its share of the bright and the costly parts of the image), then the ranks exchange them.
+constexpr int64_t kBand = 4;
+
+bool ownsRow(int64_t y) { return cluster::owns(y / kBand); }
+
+// The rows this rank renders, ascending (all of them alone).
+std::vector<int64_t> ownRows(int height) {
+    std::vector<int64_t> rows;
+    for (int64_t y = 0; y < height; ++y)
+        if (ownsRow(y)) rows.push_back(y);
+    return rows;
+}
+
+// Every rank's rows of `image` (and of the per-pixel `extra`, if not empty) on every rank.
+void shareRows(Image& image, std::vector<float>& extra) {
+    if (!cluster::distributed()) return;
+    const size_t w = size_t(image.width), rowFloats = 3 * w + (extra.empty() ? 0 : w);
+    std::string mine;
+    for (int64_t y : ownRows(image.height)) {
+        mine.append(reinterpret_cast<const char*>(image.rgb.data() + 3 * w * size_t(y)), 3 * w * sizeof(float));
+        if (!extra.empty()) mine.append(reinterpret_cast<const char*>(extra.data() + w * size_t(y)), w * sizeof(float));
+    }
+    const std::vector<std::string> all = cluster::allGather(mine);
+    std::vector<size_t> at(all.size(), 0);
+    for (int64_t y = 0; y < image.height; ++y) {
+        const size_t r = size_t((y / kBand) % cluster::size());
+        if (int(r) == cluster::rank()) continue;
+        PENUMBRA_CHECK(at[r] + rowFloats * sizeof(float) <= all[r].size());
+        std::memcpy(image.rgb.data() + 3 * w * size_t(y), all[r].data() + at[r], 3 * w * sizeof(float));
+        at[r] += 3 * w * sizeof(float);
+        if (!extra.empty()) {
+            std::memcpy(extra.data() + w * size_t(y), all[r].data() + at[r], w * sizeof(float));
+            at[r] += w * sizeof(float);
+        }
+    }
+}
+
 }  // namespace
 
 Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
@@ -51,10 +92,12 @@ Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, con
     const PinholeCamera cam(camera);
     Image image(camera.width, camera.height);
     const int side = stratumSide(samplesPerPixel);
-    Progress progress(title, camera.height);
-    parallelFor(camera.height, [&](int64_t y0, int64_t y1) {
+    const std::vector<int64_t> rows = ownRows(camera.height);
+    Progress progress(title, int64_t(rows.size()));
+    parallelFor(int64_t(rows.size()), [&](int64_t r0, int64_t r1) {
         prepareTracingThread();
-        for (int64_t y = y0; y < y1; ++y) {
+        for (int64_t r = r0; r < r1; ++r) {
+            const int64_t y = rows[size_t(r)];
             for (int x = 0; x < camera.width; ++x) {
                 Rng rng = pairRng(seed, Stream::Pixels, uint64_t(y), uint64_t(x));
                 Rgb sum = Rgb::Zero();
@@ -67,9 +110,11 @@ Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, con
             }
             progress.update();
         }
-        g_cameraSamples.add(uint64_t(camera.width) * uint64_t(side * side) * uint64_t(y1 - y0));
+        g_cameraSamples.add(uint64_t(camera.width) * uint64_t(side * side) * uint64_t(r1 - r0));
     });
     progress.done();
+    std::vector<float> none;
+    shareRows(image, none);
     return image;
 }
 
@@ -113,10 +158,13 @@ Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t se
         return p;
     };
     std::vector<float> contrast(edges ? size_t(w) * size_t(h) : 0, 0.0f);
-    Progress progress(title, edges ? 2 * int64_t(h) : h);
-    parallelFor(h, [&](int64_t y0, int64_t y1) {
+    const std::vector<int64_t> rows = ownRows(h);
+    const int64_t own = int64_t(rows.size());
+    Progress progress(title, edges ? 2 * own : own);
+    parallelFor(own, [&](int64_t r0, int64_t r1) {
         prepareTracingThread();
-        for (int64_t y = y0; y < y1; ++y) {
+        for (int64_t r = r0; r < r1; ++r) {
+            const int64_t y = rows[size_t(r)];
             for (int x = 0; x < w; ++x) {
                 PixelSampler sampler(mixSeed(pixels, uint64_t(y >> kTileBits), uint64_t(x >> kTileBits)));
                 const PixelSum p = sample(sampler, x, y, mortonRank(uint32_t(x), uint32_t(y)) * stride, spp);
@@ -127,6 +175,8 @@ Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t se
             progress.update();
         }
     });
+    // The edge pass reads the neighbours' values and spreads, which other ranks may have made.
+    shareRows(image, contrast);
     if (edges && spp == 1) {
         // One sample has no spread: a pixel's contrast is then that of its and its eight neighbours'
         // values (a lamp's edge against the ceiling beside it).
@@ -149,10 +199,11 @@ Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t se
         // 0.93%, the Cornell box 0.79% against 0.80%), from sets of their own.
         const int again = 4 * int(stride), lamp = std::max(again, 64);
         const uint64_t edgeSeed = mixSeed(seed, uint64_t(Stream::EdgePixels));
-        parallelFor(h, [&](int64_t y0, int64_t y1) {
+        parallelFor(own, [&](int64_t r0, int64_t r1) {
             prepareTracingThread();
             uint64_t count = 0, samples = 0;
-            for (int64_t y = y0; y < y1; ++y) {
+            for (int64_t r = r0; r < r1; ++r) {
+                const int64_t y = rows[size_t(r)];
                 for (int x = 0; x < w; ++x) {
                     const float most = edgeContrast(contrast, w, h, x, y);
                     if (!(most > 1)) continue;
@@ -168,6 +219,8 @@ Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t se
             g_cameraSamples.add(samples);
             g_edgePixels.add(count);
         });
+        std::vector<float> none;
+        shareRows(image, none);
     }
     progress.done();
     return image;

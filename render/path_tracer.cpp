@@ -1,5 +1,6 @@
 #include "render/path_tracer.h"
 
+#include "core/cluster.h"
 #include "core/optics.h"
 #include "render/camera.h"
 #include "render/photon_map.h"
@@ -137,6 +138,7 @@ Image lightPathsToEye(const SceneTracer& tracer, const Camera& camera, int64_t p
                 splats[size_t(c)].push_back({uint32_t(int(py) * camera.width + int(px)), value.matrix().cast<float>()});
             }
         });
+    cluster::shareChunks(splats);
     std::vector<Rgb> sum(size_t(camera.width) * size_t(camera.height), Rgb::Zero());
     for (const std::vector<Splat>& chunk : splats)
         for (const Splat& s : chunk) sum[s.pixel] += s.value.cast<double>().array();

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <nanoflann.hpp>
 
+#include "core/cluster.h"
 #include "core/counters.h"
 #include "core/log.h"
 #include "core/optics.h"
@@ -181,11 +182,16 @@ PhotonStats traceCausticPhotons(const SceneTracer& tracer, const PhotonSettings&
     begin(chunks);
     std::vector<Rgb> emitted(static_cast<size_t>(chunks), Rgb::Zero()), stored(emitted);
     std::vector<int64_t> count(static_cast<size_t>(chunks), 0);
-    Progress progress(title, chunks);
-    parallelFor(chunks, [&](int64_t c0, int64_t c1) {
+    // Under mpirun each rank traces its own chunks (cluster::owns) and the callers share what they kept.
+    std::vector<int64_t> own;
+    for (int64_t c = 0; c < chunks; ++c)
+        if (cluster::owns(c)) own.push_back(c);
+    Progress progress(title, int64_t(own.size()));
+    parallelFor(int64_t(own.size()), [&](int64_t k0, int64_t k1) {
         prepareTracingThread();
         std::vector<PhotonLanding> landings;
-        for (int64_t c = c0; c < c1; ++c) {
+        for (int64_t kc = k0; kc < k1; ++kc) {
+            const int64_t c = own[size_t(kc)];
             landings.clear();
             for (int64_t k = c * kChunk; k < std::min(n, (c + 1) * kChunk); ++k) {
                 Rng rng = streamRng(settings.seed, stream, uint64_t(k));
@@ -220,6 +226,9 @@ PhotonStats traceCausticPhotons(const SceneTracer& tracer, const PhotonSettings&
         }
     });
     progress.done();
+    cluster::shareValues(emitted);
+    cluster::shareValues(stored);
+    cluster::shareValues(count);
     for (size_t c = 0; c < emitted.size(); ++c) {
         (aimed > 0 ? stats.aimedPower : stats.emittedPower) += emitted[c];
         stats.storedPower += stored[c];
@@ -243,6 +252,7 @@ PhotonMap::PhotonMap(const SceneTracer& tracer, const PhotonSettings& settings)
                 stored[size_t(c)].push_back(
                     {l.hit.point.cast<float>(), l.hit.normal.cast<float>(), l.power.matrix().cast<float>()});
         });
+    cluster::shareChunks(stored);
     for (const std::vector<Photon>& chunk : stored)
         impl_->cloud.points.insert(impl_->cloud.points.end(), chunk.begin(), chunk.end());
     g_photonsEmitted.add(uint64_t(stats_.emitted));

@@ -14,7 +14,7 @@ PACKAGES=(
   libtbb-dev nlohmann-json3-dev libcli11-dev libgtest-dev libnanoflann-dev libtinygltf-dev
   libglfw3-dev libimgui-dev libgl-dev libegl-dev libgl1-mesa-dri xvfb xauth
   libbenchmark-dev gnuplot-nox clang-format libjemalloc-dev libopenexr-dev libpng-dev
-  clang libclang-rt-14-dev
+  clang libclang-rt-14-dev libopenmpi-dev openmpi-bin
 )
 
 install_missing() {

@@ -33,9 +33,10 @@ struct CommandResult {
     std::string output;  // stderr and stdout together
 };
 
-// Runs the penumbra executable with `args` (a shell command line) and collects what it prints.
-inline CommandResult run(const std::string& args) {
-    const std::string command = std::string(PENUMBRA_EXE) + " " + args + " 2>&1";
+// Runs the penumbra executable with `args` (a shell command line) and collects what it prints;
+// `launcher` goes before it (variables, mpirun and its options).
+inline CommandResult run(const std::string& args, const std::string& launcher = "") {
+    const std::string command = launcher + std::string(PENUMBRA_EXE) + " " + args + " 2>&1";
     FILE* pipe = popen(command.c_str(), "r");
     std::string out;
     std::array<char, 4096> buffer;

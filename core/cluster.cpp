@@ -1,0 +1,156 @@
+#include "core/cluster.h"
+
+#include <mpi.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <thread>
+
+#include "core/error.h"
+
+namespace penumbra::cluster {
+namespace {
+
+bool g_started = false;
+bool g_alone = false;
+bool g_joined = false;  // start() is done  // an Alone lives: this rank works by itself
+int g_rank = 0, g_size = 1;
+uint64_t g_sent = 0;
+std::vector<std::string> g_hosts;  // per rank (started), else this host alone
+
+std::string thisHost() {
+    char name[256] = {};
+    if (gethostname(name, sizeof name - 1) != 0) return "unknown host";
+    return name;
+}
+
+// An MPI call's failure: the job cannot go on, and the others are stopped with it.
+void check(int status, const char* what) {
+    if (status == MPI_SUCCESS) return;
+    char text[MPI_MAX_ERROR_STRING] = {};
+    int length = 0;
+    MPI_Error_string(status, text, &length);
+    abortJob(cat("error: ", what, " failed on ", rankName(g_rank), ": ", text), 1);
+}
+
+int envInt(const char* name, int otherwise) {
+    const char* v = std::getenv(name);
+    return v && *v ? std::atoi(v) : otherwise;
+}
+
+}  // namespace
+
+void start(int* argc, char*** argv) {
+    if (g_started || !std::getenv("OMPI_COMM_WORLD_SIZE")) return;
+    int provided = 0;
+    // Only the main thread calls MPI; the threads of each rank's parallel loops never do.
+    if (MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) {
+        std::fprintf(stderr, "penumbra: error: mpirun started this process, but it could not join the job\n");
+        std::exit(1);
+    }
+    g_started = true;
+    MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN);
+    MPI_Comm_rank(MPI_COMM_WORLD, &g_rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &g_size);
+    g_hosts = allGather(thisHost());
+    g_sent = 0;
+    g_joined = true;
+}
+
+void stop() {
+    if (!g_started) return;
+    MPI_Finalize();
+    g_started = false;
+}
+
+int rank() { return g_alone ? 0 : g_rank; }
+int size() { return g_alone ? 1 : g_size; }
+
+Alone::Alone() : was_(g_alone) { g_alone = true; }
+Alone::~Alone() { g_alone = was_; }
+const std::string& host() {
+    if (g_hosts.empty()) g_hosts = {thisHost()};
+    return g_hosts.at(size_t(g_rank));
+}
+std::string rankName(int r) {
+    return cat("rank ", r, " on ", r == g_rank ? host() : size_t(r) < g_hosts.size() ? g_hosts[size_t(r)] : "?");
+}
+int ranksOnHost() { return g_started ? std::max(1, envInt("OMPI_COMM_WORLD_LOCAL_SIZE", 1)) : 1; }
+
+void abortJob(const std::string& message, int code) {
+    std::fprintf(stderr, "penumbra: %s\n", message.c_str());
+    std::fflush(stderr);
+    if (g_started) MPI_Abort(MPI_COMM_WORLD, code);
+    std::exit(code);
+}
+
+std::vector<std::string> allGather(const std::string& mine) {
+    if (!g_started || g_alone) return {mine};
+    barrier();  // the early ranks wait asleep for the last one
+    const int n = g_size;
+    long long length = static_cast<long long>(mine.size());
+    std::vector<long long> lengths(static_cast<size_t>(n), 0);
+    check(MPI_Allgather(&length, 1, MPI_LONG_LONG, lengths.data(), 1, MPI_LONG_LONG, MPI_COMM_WORLD),
+          "exchanging sizes (MPI_Allgather)");
+    // Counts and offsets are ints in MPI's C API: pieces over 1 GiB go in several rounds.
+    constexpr long long kStep = 1 << 30;
+    std::vector<std::string> all(static_cast<size_t>(n));
+    for (int r = 0; r < n; ++r) all[size_t(r)].resize(size_t(lengths[size_t(r)]));
+    for (long long done = 0;; done += kStep) {
+        std::vector<int> counts(static_cast<size_t>(n)), offsets(static_cast<size_t>(n));
+        long long total = 0;
+        for (int r = 0; r < n; ++r) {
+            counts[size_t(r)] = int(std::max(0LL, std::min(kStep, lengths[size_t(r)] - done)));
+            offsets[size_t(r)] = int(total);
+            total += counts[size_t(r)];
+        }
+        if (total == 0) break;
+        std::string buffer(size_t(total), '\0');
+        const int sent = counts[size_t(g_rank)];
+        check(MPI_Allgatherv(mine.data() + std::min<long long>(done, length), sent, MPI_BYTE, buffer.data(),
+                             counts.data(), offsets.data(), MPI_BYTE, MPI_COMM_WORLD),
+              "exchanging results (MPI_Allgatherv)");
+        g_sent += uint64_t(sent);
+        for (int r = 0; r < n; ++r)
+            std::memcpy(all[size_t(r)].data() + done, buffer.data() + offsets[size_t(r)], size_t(counts[size_t(r)]));
+    }
+    return all;
+}
+
+std::string broadcast(const std::string& fromLeader) {
+    if (!g_started || g_alone) return fromLeader;
+    barrier();
+    long long length = static_cast<long long>(fromLeader.size());
+    check(MPI_Bcast(&length, 1, MPI_LONG_LONG, 0, MPI_COMM_WORLD), "broadcasting a size (MPI_Bcast)");
+    std::string bytes = g_rank == 0 ? fromLeader : std::string(size_t(length), '\0');
+    constexpr long long kStep = 1 << 30;
+    for (long long done = 0; done < length; done += kStep) {
+        const int count = int(std::min(kStep, length - done));
+        check(MPI_Bcast(bytes.data() + done, count, MPI_BYTE, 0, MPI_COMM_WORLD), "broadcasting (MPI_Bcast)");
+        if (g_rank == 0) g_sent += uint64_t(count);
+    }
+    return bytes;
+}
+
+void barrier() {
+    if (!g_started || g_alone) return;
+    // Tests: PENUMBRA_TEST_KILL_RANK=r makes rank r die by SIGKILL at its first exchange, as a
+    // crashed process or a lost host would (tests/test_cluster.cpp).
+    if (g_joined && envInt("PENUMBRA_TEST_KILL_RANK", -1) == g_rank) std::raise(SIGKILL);
+    // Polled with short sleeps: a blocking MPI_Barrier spins, and a rank that waits (for the leader's
+    // solve, for the slowest rank's rows) would take a core from the ranks still working.
+    MPI_Request request;
+    check(MPI_Ibarrier(MPI_COMM_WORLD, &request), "waiting for the other ranks (MPI_Ibarrier)");
+    for (int done = 0;;) {
+        check(MPI_Test(&request, &done, MPI_STATUS_IGNORE), "waiting for the other ranks (MPI_Test)");
+        if (done) return;
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+}
+
+uint64_t bytesSent() { return g_sent; }
+
+}  // namespace penumbra::cluster

@@ -1,0 +1,110 @@
+// The processes of one run: this one alone, or the ranks that mpirun started (Open MPI, through its
+// C API: transport, launch and membership are its, nothing here is home-made). Launched by mpirun
+// (OMPI_COMM_WORLD_SIZE in the environment), start() joins the job; otherwise every call below is
+// that of a job of one rank, and MPI is never initialised.
+//
+// Work is shared by rank, each rank computing its own share with the same seeded streams as one
+// process would (rows of an image, chunks of photons), then exchanged so that every rank holds the
+// whole: the answer is the same, bit for bit, whatever the number of ranks. Rank 0, the leader, logs
+// and writes the outputs; the others say only their errors.
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+namespace penumbra::cluster {
+
+// Joins the job when mpirun started this process (once, first thing in main); a no-op otherwise.
+void start(int* argc, char*** argv);
+// Leaves it (at a normal exit); a no-op when not started.
+void stop();
+
+int rank();
+int size();
+inline bool distributed() { return size() > 1; }
+inline bool leader() { return rank() == 0; }
+// This rank's host name.
+const std::string& host();
+// "rank 2 on node7": how messages name a rank.
+std::string rankName(int r);
+// Ranks started on this host (OMPI_COMM_WORLD_LOCAL_SIZE; 1 alone).
+int ranksOnHost();
+
+// A failure of one rank that the others cannot know about: "penumbra: " + message goes to stderr
+// (the caller names the rank where it matters), and the whole job ends with `code` (MPI_Abort).
+// Alone: exit(code).
+[[noreturn]] void abortJob(const std::string& message, int code);
+
+// While one lives, this rank works as a job of one (size() 1, rank() 0, the exchanges its own):
+// the leader's work that the others do not share (a solve they wait for, a command one rank runs).
+class Alone {
+public:
+    Alone();
+    ~Alone();
+    Alone(const Alone&) = delete;
+    Alone& operator=(const Alone&) = delete;
+
+private:
+    bool was_;
+};
+
+// Whether rank r computes item k of `count` shared items (interleaved: k % size == rank).
+inline bool owns(int64_t k) { return k % size() == rank(); }
+
+// Every rank's bytes, in rank order, on every rank.
+std::vector<std::string> allGather(const std::string& mine);
+// Rank 0's bytes on every rank.
+std::string broadcast(const std::string& fromLeader);
+// Waits for every rank.
+void barrier();
+// Bytes sent by this rank so far (what the exchanges above handed to MPI).
+uint64_t bytesSent();
+
+// Plain data that goes over the wire as its bytes: standard layout, nothing to destroy (Eigen's
+// fixed-size vectors count, though they declare their own copies and so are not "trivially copyable").
+template <typename T>
+constexpr bool kPlainData = std::is_standard_layout_v<T>&& std::is_trivially_destructible_v<T>;
+
+// Items of plain data T, per chunk: each rank filled the chunks it owns (owns(c)); afterwards
+// every rank holds every chunk's, as one process would have made them.
+template <typename T>
+void shareChunks(std::vector<std::vector<T>>& chunks) {
+    static_assert(kPlainData<T>);
+    if (!distributed()) return;
+    std::string mine;
+    for (size_t c = 0; c < chunks.size(); ++c) {
+        if (!owns(int64_t(c))) continue;
+        const uint64_t n = chunks[c].size();
+        mine.append(reinterpret_cast<const char*>(&n), sizeof n);
+        mine.append(reinterpret_cast<const char*>(chunks[c].data()), n * sizeof(T));
+    }
+    const std::vector<std::string> all = allGather(mine);
+    for (int r = 0; r < size(); ++r) {
+        if (r == rank()) continue;
+        size_t at = 0;
+        for (size_t c = size_t(r); c < chunks.size(); c += size_t(size())) {
+            uint64_t n = 0;
+            std::memcpy(&n, all[size_t(r)].data() + at, sizeof n);
+            at += sizeof n;
+            chunks[c].resize(n);
+            std::memcpy(static_cast<void*>(chunks[c].data()), all[size_t(r)].data() + at, n * sizeof(T));
+            at += n * sizeof(T);
+        }
+    }
+}
+
+// One plain-data value per chunk, shared as shareChunks does.
+template <typename T>
+void shareValues(std::vector<T>& values) {
+    if (!distributed()) return;
+    std::vector<std::vector<T>> chunks(values.size());
+    for (size_t c = 0; c < values.size(); ++c)
+        if (owns(int64_t(c))) chunks[c] = {values[c]};
+    shareChunks(chunks);
+    for (size_t c = 0; c < values.size(); ++c) values[c] = chunks[c].at(0);
+}
+
+}  // namespace penumbra::cluster
