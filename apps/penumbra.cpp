@@ -232,15 +232,14 @@ int onLeader(const char* command, const std::function<int()>& run) {
 constexpr double kMostUnshot = 1e-4;
 
 int runSolve(SolveCli& s, const CommonOptions& common) {
-    // Under mpirun the leader solves (the transport shared among the ranks: not yet, docs/distributed.md).
-    if (!cluster::leader()) return cluster::barrier(), 0;
-    std::optional<cluster::Alone> alone;
-    alone.emplace();
     const Scene scene = loadScene(s.scene);
     // The outputs appear as one set or not at all (output_set.h); --out is checked before the work.
+    // Under mpirun every rank solves, sharing the form factors' rows and the picture's (cluster.h),
+    // and the leader writes.
     std::vector<std::string> names{"solution.bin", "convergence.csv", "report.json"};
     if (scene.hasCamera) names.insert(names.end(), {"radiosity.exr", "radiosity.png"});
-    OutputSet outputs(s.out, names);
+    std::optional<OutputSet> outputs;
+    if (cluster::leader()) outputs.emplace(s.out, names);
     const SolveOptions options = s.resolved(common);
     // A report balances emitted = absorbed + escaped to 1e-4 of the emitted power (the contract's
     // check-report): a looser tolerance stopped with up to that much unshot and wrote a report
@@ -260,21 +259,22 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
                         options.solverSettings.tolerance,
                         "); raise --max-iterations or loosen --tolerance; nothing written"));
 
-    outputs.write("solution.bin", [&](const std::string& path) { writeSolution(path, r); });
-    outputs.write("convergence.csv", [&](const std::string& path) { writeFileAtomic(path, convergenceCsv(r)); });
+    Image view;
+    if (scene.hasCamera)
+        view = renderRadiosityView(scene, scene.camera, r.patches, *r.rays, corners, {s.viewSpp, common.seed});
+    if (!cluster::leader()) return cluster::barrier(), 0;
+    outputs->write("solution.bin", [&](const std::string& path) { writeSolution(path, r); });
+    outputs->write("convergence.csv", [&](const std::string& path) { writeFileAtomic(path, convergenceCsv(r)); });
     if (scene.hasCamera) {
-        const Image view =
-            renderRadiosityView(scene, scene.camera, r.patches, *r.rays, corners, {s.viewSpp, common.seed});
-        outputs.write("radiosity.exr", [&](const std::string& path) { writeLinearImage(view, path); });
-        outputs.write("radiosity.png", [&](const std::string& path) { writePreviewPng(view, path); });
+        outputs->write("radiosity.exr", [&](const std::string& path) { writeLinearImage(view, path); });
+        outputs->write("radiosity.png", [&](const std::string& path) { writePreviewPng(view, path); });
     }
-    outputs.write("report.json",
-                  [&](const std::string& path) { writeFileAtomic(path, reportJson(scene, r, peakMemoryBytes())); });
+    outputs->write("report.json",
+                   [&](const std::string& path) { writeFileAtomic(path, reportJson(scene, r, peakMemoryBytes())); });
     // Under mpirun the files go into place only once every rank is known to be alive: a rank lost
     // before this leaves nothing behind.
-    alone.reset();
     cluster::barrier();
-    outputs.commit();
+    outputs->commit();
     const double m2 = scene.squareMetresPerUnit();  // inside units to m^2 and W
     logInfo("wrote ", s.out, ": ", r.patches.size(), " patches, emitted ", r.power.totalEmitted.sum() * m2,
             " W, absorbed ", r.power.totalAbsorbed.sum() * m2, " W, escaped ", r.power.escaped.sum() * m2, " W");
@@ -309,11 +309,12 @@ SolveResult solveOrRead(const Scene& scene, const RenderCli& c, SolveCli& s, con
                         int gatherSpp);
 
 // The stored solution, or a solve made now; `gatherSpp` > 0: for final-gathered images of that many
-// samples per pixel. Under mpirun the leader reads or solves it and sends it to the other ranks, and
-// every rank (the leader too) renders from the copy sent: the same bytes everywhere.
+// samples per pixel. Under mpirun the ranks solve together, or the leader reads the stored one and
+// sends it to the others, and every rank (the leader too) renders from the copy sent.
 SolveResult solutionFor(const Scene& scene, const RenderCli& c, SolveCli& s, const CommonOptions& common,
                         int gatherSpp) {
-    if (!cluster::distributed()) return solveOrRead(scene, c, s, common, gatherSpp);
+    // Every rank solves together (the form factors' rows shared); a stored one the leader reads.
+    if (!cluster::distributed() || c.solution.empty()) return solveOrRead(scene, c, s, common, gatherSpp);
     std::string bytes;
     if (cluster::leader()) {
         const cluster::Alone alone;
@@ -321,7 +322,7 @@ SolveResult solutionFor(const Scene& scene, const RenderCli& c, SolveCli& s, con
     }
     bytes = cluster::broadcast(bytes);
     logInfo("mpirun: the solution sent to every rank, ", double(bytes.size()) / (1 << 20), " MiB");
-    return solutionFromBytes(bytes, c.solution.empty() ? "the solution sent by rank 0" : c.solution);
+    return solutionFromBytes(bytes, c.solution);
 }
 
 SolveResult solveOrRead(const Scene& scene, const RenderCli& c, SolveCli& s, const CommonOptions& common,

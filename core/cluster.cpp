@@ -153,4 +153,11 @@ void barrier() {
 
 uint64_t bytesSent() { return g_sent; }
 
+void Unpacker::take(void* to, size_t count) {
+    // Another rank of the same program packed these bytes: a short read is this program's fault.
+    PENUMBRA_CHECK(at_ + count <= bytes_.size());
+    if (count) std::memcpy(to, bytes_.data() + at_, count);
+    at_ += count;
+}
+
 }  // namespace penumbra::cluster

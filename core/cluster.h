@@ -96,6 +96,47 @@ void shareChunks(std::vector<std::vector<T>>& chunks) {
     }
 }
 
+// Values and vectors of plain data into bytes, for the exchanges above, and back in the same order.
+class Packer {
+public:
+    template <typename T>
+    void put(const T& v) {
+        static_assert(kPlainData<T>);
+        bytes.append(reinterpret_cast<const char*>(&v), sizeof(T));
+    }
+    template <typename T>
+    void put(const std::vector<T>& v) {
+        static_assert(kPlainData<T>);
+        put(uint64_t(v.size()));
+        bytes.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+    }
+    std::string bytes;
+};
+
+class Unpacker {
+public:
+    explicit Unpacker(const std::string& bytes) : bytes_(bytes) {}
+    template <typename T>
+    void get(T& v) {
+        static_assert(kPlainData<T>);
+        take(&v, sizeof(T));
+    }
+    template <typename T>
+    void get(std::vector<T>& v) {
+        static_assert(kPlainData<T>);
+        uint64_t n = 0;
+        get(n);
+        v.resize(n);
+        take(v.data(), n * sizeof(T));
+    }
+    bool done() const { return at_ == bytes_.size(); }
+
+private:
+    void take(void* to, size_t count);
+    const std::string& bytes_;
+    size_t at_ = 0;
+};
+
 // One plain-data value per chunk, shared as shareChunks does.
 template <typename T>
 void shareValues(std::vector<T>& values) {

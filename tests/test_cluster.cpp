@@ -47,7 +47,9 @@ TEST(Cluster, RendersUnderMpirunEqualOneProcessBitForBit) {
     };
     const std::string small = " --resolution 48x40 --quiet";
     const std::vector<Case> cases{
-        {"gather", sceneFile("cornell-glass.json") + " --spp 4 --patches 300 --form-factors rays" + small, {".exr", ".png"}},
+        {"gather",
+         sceneFile("cornell-glass.json") + " --spp 4 --patches 300 --form-factors rays" + small,
+         {".exr", ".png"}},
         {"path", sceneFile("cornell-glass.json") + " --integrator path --spp 8" + small, {".exr"}},
         {"orbit",
          sceneFile("cornell-box.json") + " --integrator radiosity --orbit 2 --patches 300 --form-factors rays" + small,
@@ -90,8 +92,8 @@ TEST(Cluster, ARankKilledStopsTheJobAndLeavesNoOutput) {
     fs::remove_all(out);
     for (const std::string& command :
          {cat("solve ", sceneFile("cornell-box.json"), " --patches 300 --form-factors rays --out ", out, "/solve"),
-          cat("render ", sceneFile("cornell-glass.json"), " --resolution 48x40 --spp 4 --patches 300 --form-factors rays --out ", out,
-              "/render/image.exr")}) {
+          cat("render ", sceneFile("cornell-glass.json"),
+              " --resolution 48x40 --spp 4 --patches 300 --form-factors rays --out ", out, "/render/image.exr")}) {
         const auto start = std::chrono::steady_clock::now();
         const CommandResult r = runRanks(2, command, "PENUMBRA_TEST_KILL_RANK=1");
         const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

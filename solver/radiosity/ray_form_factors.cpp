@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <map>
 #include <mutex>
 
+#include "core/cluster.h"
 #include "core/counters.h"
 #include "core/error.h"
 #include "core/log.h"
@@ -24,6 +26,96 @@ const Counter g_castRays("form_factors.cast_rays", "rays cast for ray-cast form 
 const Counter g_gapRays("form_factors.gap_rays",
                         "of form_factors.cast_rays, those along a patch's normal asking whether an origin is in a gap");
 // How far ray origins are lifted off their patch along its normal: a millionth of the scene's size.
+// Casts the `wanted` rows by castRows(list), and returns which rank cast each row (-1: not wanted).
+// Alone, every row here. Under mpirun the rows go by measured cost, in blocks of kRowBlock neighbours
+// (which cost alike: a room's floor beside its lamp): every kProbeStride-th block is cast first, dealt
+// out in turn, and timed (`rowSeconds`, filled by castRows); every other block is expected to cost
+// what the probe block before it did, and goes to the rank with the least work so far, the costliest
+// first (Graham's longest-processing-time rule). Every rank makes the same choice from the same
+// exchanged times; which rank casts a row changes nothing in it.
+constexpr size_t kRowBlock = 16, kProbeStride = 16;
+template <typename CastRows>
+std::vector<int> castShared(const std::vector<size_t>& wanted, const std::vector<float>& rowSeconds,
+                            const CastRows& castRows) {
+    const size_t n = rowSeconds.empty() ? (wanted.empty() ? 0 : wanted.back() + 1) : rowSeconds.size();
+    std::vector<int> owner(n, -1);
+    if (!cluster::distributed()) {
+        castRows(wanted);
+        for (size_t i : wanted) owner[i] = 0;
+        return owner;
+    }
+    const int ranks = cluster::size(), me = cluster::rank();
+    const size_t blocks = (n + kRowBlock - 1) / kRowBlock;
+    const auto rowsOf = [&](const std::vector<size_t>& of) {
+        std::vector<char> in(blocks, 0);
+        for (size_t b : of) in[b] = 1;
+        std::vector<size_t> rows;
+        for (size_t i : wanted)
+            if (in[i / kRowBlock]) rows.push_back(i);
+        return rows;
+    };
+    std::vector<size_t> probes, mine;
+    for (size_t b = 0; b < blocks; b += kProbeStride) {
+        probes.push_back(b);
+        const int r = int((b / kProbeStride) % size_t(ranks));
+        for (size_t i = b * kRowBlock; i < std::min(n, (b + 1) * kRowBlock); ++i) owner[i] = r;
+        if (r == me) mine.push_back(b);
+    }
+    auto t0 = std::chrono::steady_clock::now();
+    castRows(rowsOf(mine));
+    auto t1 = std::chrono::steady_clock::now();
+    // The probes' times, every rank's, on every rank.
+    std::vector<std::vector<float>> cost(probes.size());
+    for (size_t k = 0; k < probes.size(); ++k) {
+        if (int(k % size_t(ranks)) != me) continue;
+        float sum = 0;
+        for (size_t i = probes[k] * kRowBlock; i < std::min(n, (probes[k] + 1) * kRowBlock); ++i) sum += rowSeconds[i];
+        cost[k] = {sum};
+    }
+    cluster::shareChunks(cost);
+    std::vector<double> load(static_cast<size_t>(ranks), 0.0);
+    for (size_t k = 0; k < probes.size(); ++k) load[k % size_t(ranks)] += double(cost[k].at(0));
+    // A block is expected to cost its wanted rows times the probe's cost per wanted row (the mean
+    // over all probes where its probe had none: the second pass casts a few rows here and there).
+    std::vector<size_t> count(blocks, 0);
+    for (size_t i : wanted) ++count[i / kRowBlock];
+    double probed = 0, probedRows = 0;
+    for (size_t k = 0; k < probes.size(); ++k) probed += double(cost[k].at(0)), probedRows += double(count[probes[k]]);
+    const double meanRow = probedRows > 0 ? probed / probedRows : 1.0;
+    const auto expected = [&](size_t b) {
+        const size_t probe = b / kProbeStride * kProbeStride;
+        const double perRow = count[probe] > 0 ? double(cost[b / kProbeStride].at(0)) / double(count[probe]) : meanRow;
+        return perRow * double(count[b]);
+    };
+    std::vector<size_t> rest;
+    for (size_t b = 0; b < blocks; ++b)
+        if (b % kProbeStride != 0 && count[b] > 0) rest.push_back(b);
+    std::stable_sort(rest.begin(), rest.end(), [&](size_t a, size_t b) { return expected(a) > expected(b); });
+    mine.clear();
+    for (size_t b : rest) {
+        const int r = int(std::min_element(load.begin(), load.end()) - load.begin());
+        load[size_t(r)] += expected(b);
+        for (size_t i = b * kRowBlock; i < std::min(n, (b + 1) * kRowBlock); ++i) owner[i] = r;
+        if (r == me) mine.push_back(b);
+    }
+    auto t2 = std::chrono::steady_clock::now();
+    castRows(rowsOf(mine));
+    auto t3 = std::chrono::steady_clock::now();
+    // What each rank spent, for the log: how well the expected costs shared the work.
+    std::vector<std::array<double, 3>> spent(static_cast<size_t>(ranks));
+    spent[size_t(me)] = {std::chrono::duration<double>(t1 - t0).count(), std::chrono::duration<double>(t3 - t2).count(),
+                         load[size_t(me)]};
+    cluster::shareValues(spent);
+    std::string line;
+    for (int r = 0; r < ranks; ++r)
+        line += cat(r ? "; " : "", "rank ", r, " ", spent[size_t(r)][0] + spent[size_t(r)][1], " s (expected ",
+                    spent[size_t(r)][2], ")");
+    logInfo("form factors (rays) under mpirun: ", wanted.size(), " rows shared by measured cost: ", line);
+    for (size_t i = 0; i < n; ++i)
+        if (!std::binary_search(wanted.begin(), wanted.end(), i)) owner[i] = -1;
+    return owner;
+}
+
 double originLift(const PatchSet& patches) {
     const double diagonal = patches.size() ? patchBounds(patches).diagonal().norm() : 1.0;
     return 1e-6 * std::max(diagonal, 1e-3);
@@ -330,311 +422,367 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     std::atomic<int64_t> analyticNanos{0};  // thread time in the analytic columns
     std::atomic<size_t> hidden{0};          // patches with a mean row
     std::atomic<size_t> inGaps{0};          // of which part lies in a narrow gap
-    Progress progress("form factors (rays)", int64_t(n));
-    parallelFor(
-        int64_t(n),
-        [&](int64_t begin, int64_t end) {
-            prepareTracingThread();
-            std::vector<BackTransfer> myBack;
-            std::map<int, int> backHits;
-            // Front-face hits of the row, per patch: kept per thread across chunks (a chunk may be a
-            // few rows, the array n long) and left all zero after each row.
-            static thread_local std::vector<int> hits;
-            if (hits.size() < n) hits.assign(n, 0);
-            std::vector<int32_t> touched;
-            int side = baseSide, count = baseCount;  // this row's
-            // Each origin and the front patch its ray met (-1: anything else), for the second rays.
-            std::vector<Vec3> origins(static_cast<size_t>(count));
-            std::vector<int32_t> landed(static_cast<size_t>(count));
-            std::vector<int> order;  // the direction stratum of each origin stratum
-            // Where each origin's ray landed on its front patch near enough to read the light at that
-            // point (kNearRadii), the offset in that patch's frame; and each origin inside a solid.
-            std::vector<char> isNear(static_cast<size_t>(count)), isInside(static_cast<size_t>(count));
-            // Per origin: its first ray met a front patch within the gap distance, or a back face; the
-            // origin lies in a gap.
-            constexpr char kCloseHit = 1, kBackHit = 2, kInGap = 4;
-            std::vector<char> gapFlags(static_cast<size_t>(count));
-            std::vector<std::array<float, 2>> offset(static_cast<size_t>(count));
-            static thread_local std::vector<HitReadings::Near> sums;
-            if (sums.size() < n) sums.assign(n, HitReadings::Near{-1, 0, 0, 0});
-            std::vector<int32_t> nearTouched;
-            // Per analytic column, the patch that last blocked a visibility ray to it (rows in patch
-            // order: neighbours, often behind the same wall).
-            std::vector<Blockers> blockers(analytic.size());
-            // Per analytic column, the last object that hid a receiver wholly from it (the wall between
-            // the rooms: a receiver beside the last one is likely behind it too), -1 if none.
-            std::vector<int> wall(analytic.size(), -1);
-            uint64_t myHidden = 0, myProved = 0;
-            std::vector<char> proved(sourceEnds.size());
-            std::vector<FormFactorMatrix::EntryVariance> myVariance, rowVariance;
-            // The near hits among the origins that `counts`, each of weight w.
-            auto collectNear = [&](char reach, const auto& counts, double w, std::vector<HitReadings::Near>& out) {
-                out.clear();
-                nearTouched.clear();
-                for (int k = 0; k < count; ++k) {
-                    if (isNear[size_t(k)] != reach || !counts(k)) continue;
-                    HitReadings::Near& sum = sums[size_t(landed[size_t(k)])];
-                    if (sum.patch < 0) sum.patch = landed[size_t(k)], nearTouched.push_back(sum.patch);
-                    sum.weight += float(w), sum.u += float(w * offset[size_t(k)][0]),
-                        sum.v += float(w * offset[size_t(k)][1]);
-                }
-                for (int32_t j : nearTouched) {
-                    out.push_back(sums[size_t(j)]);
-                    sums[size_t(j)] = HitReadings::Near{-1, 0, 0, 0};
-                }
-            };
-            for (int64_t ii = begin; ii < end; ++ii, progress.update()) {
-                const size_t i = size_t(ii);
-                if (!raysFor.empty()) {
-                    if (raysFor[i] <= 0) continue;
-                    side = stratumSide(raysFor[i]);
-                    count = side * side;
-                    if (origins.size() < size_t(count)) {
-                        origins.resize(size_t(count)), landed.resize(size_t(count)), offset.resize(size_t(count));
-                        isNear.resize(size_t(count)), isInside.resize(size_t(count)), gapFlags.resize(size_t(count));
-                    }
-                }
-                firstRays += uint64_t(count);
-                ++rowsCast;
-                Rng rng = streamRng(settings.seed, raysFor.empty() ? Stream::CastFormFactors : Stream::CastMore, i);
-                const Vec3 n0 = patches.normal[i];
-                backHits.clear();
-                touched.clear();
-                int analyticHits = 0, inside = 0, followed = 0, backs = 0, close = 0;
-                const double gap = kGapRadii * patches.radius[i];
-                int wholly = 0;  // the rays cast before the patch was found wholly inside a solid
-                const bool mayBeCovered = !(i < emitting.size() && emitting[i]);
-                shuffledStrata(order, count, rng);
-                const double inverseSide = 1.0 / side;
-                const PatchPointSampler onPatch(patches, i);
-                const CosineSampler around(n0);
-                const Vec3 lifted = lift * n0;
-                for (int k = 0; k < count; ++k) {
-                    // Origins in one stratum of the patch, directions in another (a random
-                    // permutation of the strata), both jittered.
-                    const int a = k, b = order[size_t(k)];
-                    const double u1 = ((a % side) + rng.uniform()) * inverseSide;
-                    const double u2 = ((a / side) + rng.uniform()) * inverseSide;
-                    const double d1 = ((b % side) + rng.uniform()) * inverseSide;
-                    const double d2 = ((b / side) + rng.uniform()) * inverseSide;
-                    rng.uniform();  // u3 of samplePatchPoint, unused: kept so the stream stays as it was
-                    const Vec3 at = onPatch(u1, u2);
-                    const Vec3 origin = at + 1e-3 * (patches.centroid[i] - at) + lifted;  // rayOrigin
-                    const Vec3 dir = around(d1, d2);
-                    const Hit h = rays.intersect(origin, dir, 0, 1e30, RayView::Patches);
-                    origins[size_t(k)] = origin;
-                    landed[size_t(k)] = -1;
-                    isNear[size_t(k)] = isInside[size_t(k)] = gapFlags[size_t(k)] = 0;
-                    if (h.patch < 0) continue;  // out of the scene
-                    const size_t j = size_t(h.patch);
-                    if (patches.normal[j].dot(dir) >= 0) {
-                        if (mayBeCovered && insideSolid(patches, rays, i, origin, followed)) {
-                            isInside[size_t(k)] = 1;
-                            // At the first origin inside a solid, whether the whole patch is.
-                            if (++inside == 1 && whollyInside(patches, rays, i, lift, followed)) {
-                                wholly = k + 1;
-                                break;
-                            }
-                        } else {
-                            ++backHits[h.patch];
-                            ++backs;
-                            gapFlags[size_t(k)] = kBackHit;
-                        }
-                    } else if (j < analyticColumns.size() && analyticColumns[j]) {
-                        ++analyticHits;
-                    } else {
-                        landed[size_t(k)] = int32_t(j);
-                        if (hits[j]++ == 0) touched.push_back(int32_t(j));
-                        // A mirror's or glass's sphere close by is no gap: the specular transport
-                        // carries what it reflects. (Read as the patch's own light as well, the floor
-                        // under cornell-glass's glass ball had its light twice: at --grade-contacts 0,
-                        // its quarter of the floor +0.63% over 8 seeds, +0.06% without.)
-                        if (h.t < gap && !rays.onExactSphere(j)) gapFlags[size_t(k)] = kCloseHit, ++close;
-                        if (readings) {
-                            const Vec3 x = origin + h.t * dir - patches.centroid[j];
-                            isNear[size_t(k)] = h.t < nearRadii * patches.radius[j] ? kNear : kFar;
-                            offset[size_t(k)] = {float(x.dot(tangentU[j])), float(x.dot(tangentV[j]))};
-                        }
-                    }
-                }
-                if (wholly) {  // no light reaches it, none leaves it
-                    for (int32_t j : touched) hits[size_t(j)] = 0;
-                    exposed[i] = 0;
-                    g_castRays.add(uint64_t(wholly + followed));
-                    continue;
-                }
-                // The origins in the open, and their share of the patch (all of them but in a solid).
-                const int open = count - inside;
-                exposed[i] = float(open) / float(count);
-                if (inside > 0 && open > 0) {  // the centroid of the uncovered part, by its origins
-                    Vec3 sum = Vec3::Zero();
-                    for (int k = 0; k < count; ++k)
-                        if (!isInside[size_t(k)]) sum += origins[size_t(k)] - patches.centroid[i];
-                    read.shift[i] = {float(sum.dot(tangentU[i]) / open), float(sum.dot(tangentV[i]) / open)};
-                }
-                // Origins in a narrow gap: where at least 1 in kGapShare of the rays landed within the gap
-                // distance, each origin in the open whose patch normal meets a front face that near. A
-                // patch wholly in a gap (a shelf's back panel, facing the wall 1 cm behind it) holds
-                // the gap's light: what its rays meet within the gap is read as its own, not as the
-                // light the room sees of the far side (which would light the gap from the room).
-                int enclosed = 0;
-                if (close > 0 && close * kGapShare >= open) {
-                    const int before = followed;
+    // Under mpirun each rank casts its own rows (rowOwners: by measured cost), then all are exchanged.
+    std::vector<size_t> wanted;
+    for (size_t i = 0; i < n; ++i)
+        if (raysFor.empty() || raysFor[i] > 0) wanted.push_back(i);
+    std::vector<float> rowSeconds(cluster::distributed() ? n : 0, 0.0f);  // thread time of each row cast
+    Progress progress("form factors (rays)",
+                      int64_t((wanted.size() + size_t(cluster::size()) - 1) / size_t(cluster::size())));
+    const auto castRows = [&](const std::vector<size_t>& list) {
+        parallelFor(
+            int64_t(list.size()),
+            [&](int64_t begin, int64_t end) {
+                prepareTracingThread();
+                std::vector<BackTransfer> myBack;
+                std::map<int, int> backHits;
+                // Front-face hits of the row, per patch: kept per thread across chunks (a chunk may be a
+                // few rows, the array n long) and left all zero after each row.
+                static thread_local std::vector<int> hits;
+                if (hits.size() < n) hits.assign(n, 0);
+                std::vector<int32_t> touched;
+                int side = baseSide, count = baseCount;  // this row's
+                // Each origin and the front patch its ray met (-1: anything else), for the second rays.
+                std::vector<Vec3> origins(static_cast<size_t>(count));
+                std::vector<int32_t> landed(static_cast<size_t>(count));
+                std::vector<int> order;  // the direction stratum of each origin stratum
+                // Where each origin's ray landed on its front patch near enough to read the light at that
+                // point (kNearRadii), the offset in that patch's frame; and each origin inside a solid.
+                std::vector<char> isNear(static_cast<size_t>(count)), isInside(static_cast<size_t>(count));
+                // Per origin: its first ray met a front patch within the gap distance, or a back face; the
+                // origin lies in a gap.
+                constexpr char kCloseHit = 1, kBackHit = 2, kInGap = 4;
+                std::vector<char> gapFlags(static_cast<size_t>(count));
+                std::vector<std::array<float, 2>> offset(static_cast<size_t>(count));
+                static thread_local std::vector<HitReadings::Near> sums;
+                if (sums.size() < n) sums.assign(n, HitReadings::Near{-1, 0, 0, 0});
+                std::vector<int32_t> nearTouched;
+                // Per analytic column, the patch that last blocked a visibility ray to it (rows in patch
+                // order: neighbours, often behind the same wall).
+                std::vector<Blockers> blockers(analytic.size());
+                // Per analytic column, the last object that hid a receiver wholly from it (the wall between
+                // the rooms: a receiver beside the last one is likely behind it too), -1 if none.
+                std::vector<int> wall(analytic.size(), -1);
+                uint64_t myHidden = 0, myProved = 0;
+                std::vector<char> proved(sourceEnds.size());
+                std::vector<FormFactorMatrix::EntryVariance> myVariance, rowVariance;
+                // The near hits among the origins that `counts`, each of weight w.
+                auto collectNear = [&](char reach, const auto& counts, double w, std::vector<HitReadings::Near>& out) {
+                    out.clear();
+                    nearTouched.clear();
                     for (int k = 0; k < count; ++k) {
-                        if (isInside[size_t(k)] || (gapFlags[size_t(k)] & kBackHit)) continue;
-                        const Hit h = rays.intersect(origins[size_t(k)], n0, 0, gap, RayView::Patches);
-                        ++followed;
-                        if (h.patch >= 0 && !rays.onExactSphere(size_t(h.patch)) &&
-                            patches.normal[size_t(h.patch)].dot(n0) < 0)
-                            gapFlags[size_t(k)] |= kInGap, ++enclosed;
+                        if (isNear[size_t(k)] != reach || !counts(k)) continue;
+                        HitReadings::Near& sum = sums[size_t(landed[size_t(k)])];
+                        if (sum.patch < 0) sum.patch = landed[size_t(k)], nearTouched.push_back(sum.patch);
+                        sum.weight += float(w), sum.u += float(w * offset[size_t(k)][0]),
+                            sum.v += float(w * offset[size_t(k)][1]);
                     }
-                    g_gapRays.add(uint64_t(followed - before));
-                    if (enclosed > 0 && open - backs - enclosed <= 0) {
-                        for (int k = 0; k < count; ++k) {
-                            // What the gap's origins meet within it: their own patch's light.
-                            if ((gapFlags[size_t(k)] & (kInGap | kCloseHit)) != (kInGap | kCloseHit)) continue;
-                            --hits[size_t(landed[size_t(k)])];
-                            if (hits[i]++ == 0) touched.push_back(int32_t(i));
-                            landed[size_t(k)] = int32_t(i);
-                            const Vec3 x = origins[size_t(k)] - patches.centroid[i];
-                            isNear[size_t(k)] = readings ? kNear : 0;
-                            offset[size_t(k)] = {float(x.dot(tangentU[i])), float(x.dot(tangentV[i]))};
-                        }
-                        enclosed = 0;
-                        std::fill(gapFlags.begin(), gapFlags.begin() + count, 0);
+                    for (int32_t j : nearTouched) {
+                        out.push_back(sums[size_t(j)]);
+                        sums[size_t(j)] = HitReadings::Near{-1, 0, 0, 0};
                     }
-                }
-                std::vector<std::pair<int32_t, float>>& row = entries[i];
-                if (open == 0) {  // wholly inside a solid: no light reaches it
-                    g_castRays.add(uint64_t(count + followed));
-                    continue;
-                }
-                // The analytic columns, computed as the analytic matrix computes them (over the whole
-                // patch, whose covered part sees no source), then as a mean over the uncovered part.
-                // A row cast again measures them again too, with its share more visibility rays (a
-                // stream of their own): a floor patch in a desk's penumbra reads its lamp through a few
-                // rays, and that noise is what its neighbours gather (EntryVariance).
-                FormFactorSettings visibility = settings;
-                visibility.visibilityRays = settings.visibilityRays * std::clamp(count / baseCount, 1, 8);
-                const Stream stream = raysFor.empty() ? Stream::Visibility : Stream::VisibilityAgain;
-                double exact = 0;
-                rowVariance.clear();
-                const Timer columns;
-                if (shafts) {
-                    const ShaftEnd receiver = patchEnd(patches, i);
-                    for (size_t e = 0; e < sourceEnds.size(); ++e)
-                        proved[e] = shafts->clear(receiver, sourceEnds[e].end);
-                }
-                for (size_t a = 0; a < columnCount; ++a) {
-                    const size_t j = analytic[a];
-                    double whole, variance = 0;
-                    const bool clear = endOf[a] >= 0 && proved[size_t(endOf[a])];
-                    if (!clear && wall[a] >= 0 && hidesWholly(occluders[size_t(wall[a])], patches, i, j)) {
-                        whole = 0;
-                        ++myHidden;
-                    } else {
-                        myProved += clear;
-                        whole =
-                            frontFormFactor(patches, rays, i, j, visibility, &blockers[a], &variance, stream, clear);
-                        const Blockers& by = blockers[a];
-                        const int last = by.patch[(size_t(by.next) + by.patch.size() - 1) % by.patch.size()];
-                        if (whole == 0 && last >= 0) {
-                            const int o = patches.object[size_t(last)];
-                            if (o != wall[a] && hidesWholly(occluders[size_t(o)], patches, i, j)) wall[a] = o;
+                };
+                // Each row's time, where the rows are shared by cost: from its start to the next row's.
+                size_t timed = n;
+                auto since = std::chrono::steady_clock::now();
+                const auto settle = [&] {
+                    const auto now = std::chrono::steady_clock::now();
+                    if (timed < rowSeconds.size())
+                        rowSeconds[timed] = std::chrono::duration<float>(now - since).count();
+                    since = now;
+                };
+                for (int64_t ii = begin; ii < end; ++ii, progress.update()) {
+                    const size_t i = list[size_t(ii)];
+                    settle();
+                    timed = i;
+                    if (!raysFor.empty()) {
+                        side = stratumSide(raysFor[i]);
+                        count = side * side;
+                        if (origins.size() < size_t(count)) {
+                            origins.resize(size_t(count)), landed.resize(size_t(count)), offset.resize(size_t(count));
+                            isNear.resize(size_t(count)), isInside.resize(size_t(count)),
+                                gapFlags.resize(size_t(count));
                         }
                     }
-                    const double f = whole / exposed[i];
-                    if (f > 0) row.push_back({int32_t(j), float(f)});
-                    if (variance > 0)
-                        rowVariance.push_back(
-                            {int32_t(i), int32_t(j), float(variance / (double(exposed[i]) * exposed[i]))});
-                    exact += f;
-                }
-                if (!analytic.empty()) analyticNanos += int64_t(columns.seconds() * 1e9);
-                // Scale the rays' other fates so that all fates sum to one; should every ray have met an
-                // analytic column (no other fate to scale), those columns take the whole row.
-                const double rayShare = double(analyticHits) / open;
-                double scale = 1;
-                if (!analytic.empty() && rayShare < 1)
-                    scale = std::max(0.0, 1 - exact) / (1 - rayShare);
-                else if (!analytic.empty() && exact > 0)
-                    for (auto& e : row) e.second = float(e.second / exact);
-                for (int32_t j : touched) {
-                    if (hits[size_t(j)] > 0) row.push_back({j, float(scale * hits[size_t(j)] / open)});
-                    hits[size_t(j)] = 0;
-                }
-                std::sort(row.begin(), row.end());
-                collectNear(
-                    kNear, [](int) { return true; }, scale / open, read.rows[i]);
-                collectNear(
-                    kFar, [](int) { return true; }, scale / open, read.farRows[i]);
-                // A_i F(i -> back of j), with the light of the uncovered part, exposed[i] A_i.
-                for (const auto& [j, h] : backHits)
-                    myBack.push_back({int(i), j, scale * patches.area[i] * double(h) / double(count)});
-                if (backs > 0 || enclosed > 0) {
-                    // Part of the patch is hidden: what the rest of the scene sees is the light of each
-                    // point weighted by how much of the scene sees it, its share of directions that
-                    // meet no back face, and none if it lies in a gap. That weight is a second ray from
-                    // the origin, independent of the first: an origin's light counts where its second
-                    // ray meets no back face, over the origins whose first ray met none (without back
-                    // faces, every origin not in a gap counts). The row above stays as the mean.
-                    const int unhidden = open - backs - enclosed;
-                    seen[i] = float(unhidden) / float(open);
-                    ++hidden;
-                    if (enclosed > 0) ++inGaps;
-                    meanEntries[i].swap(row);
-                    read.meanRows[i].swap(read.rows[i]);
-                    read.farMeanRows[i].swap(read.farRows[i]);
-                    int second = 0;
+                    firstRays += uint64_t(count);
+                    ++rowsCast;
+                    Rng rng = streamRng(settings.seed, raysFor.empty() ? Stream::CastFormFactors : Stream::CastMore, i);
+                    const Vec3 n0 = patches.normal[i];
+                    backHits.clear();
                     touched.clear();
-                    std::vector<char> counted(static_cast<size_t>(count), 0);
+                    int analyticHits = 0, inside = 0, followed = 0, backs = 0, close = 0;
+                    const double gap = kGapRadii * patches.radius[i];
+                    int wholly = 0;  // the rays cast before the patch was found wholly inside a solid
+                    const bool mayBeCovered = !(i < emitting.size() && emitting[i]);
+                    shuffledStrata(order, count, rng);
+                    const double inverseSide = 1.0 / side;
+                    const PatchPointSampler onPatch(patches, i);
+                    const CosineSampler around(n0);
+                    const Vec3 lifted = lift * n0;
                     for (int k = 0; k < count; ++k) {
-                        const int32_t j = landed[size_t(k)];
-                        if (j < 0 || (gapFlags[size_t(k)] & kInGap)) continue;
-                        if (backs == 0) {
+                        // Origins in one stratum of the patch, directions in another (a random
+                        // permutation of the strata), both jittered.
+                        const int a = k, b = order[size_t(k)];
+                        const double u1 = ((a % side) + rng.uniform()) * inverseSide;
+                        const double u2 = ((a / side) + rng.uniform()) * inverseSide;
+                        const double d1 = ((b % side) + rng.uniform()) * inverseSide;
+                        const double d2 = ((b / side) + rng.uniform()) * inverseSide;
+                        rng.uniform();  // u3 of samplePatchPoint, unused: kept so the stream stays as it was
+                        const Vec3 at = onPatch(u1, u2);
+                        const Vec3 origin = at + 1e-3 * (patches.centroid[i] - at) + lifted;  // rayOrigin
+                        const Vec3 dir = around(d1, d2);
+                        const Hit h = rays.intersect(origin, dir, 0, 1e30, RayView::Patches);
+                        origins[size_t(k)] = origin;
+                        landed[size_t(k)] = -1;
+                        isNear[size_t(k)] = isInside[size_t(k)] = gapFlags[size_t(k)] = 0;
+                        if (h.patch < 0) continue;  // out of the scene
+                        const size_t j = size_t(h.patch);
+                        if (patches.normal[j].dot(dir) >= 0) {
+                            if (mayBeCovered && insideSolid(patches, rays, i, origin, followed)) {
+                                isInside[size_t(k)] = 1;
+                                // At the first origin inside a solid, whether the whole patch is.
+                                if (++inside == 1 && whollyInside(patches, rays, i, lift, followed)) {
+                                    wholly = k + 1;
+                                    break;
+                                }
+                            } else {
+                                ++backHits[h.patch];
+                                ++backs;
+                                gapFlags[size_t(k)] = kBackHit;
+                            }
+                        } else if (j < analyticColumns.size() && analyticColumns[j]) {
+                            ++analyticHits;
+                        } else {
+                            landed[size_t(k)] = int32_t(j);
+                            if (hits[j]++ == 0) touched.push_back(int32_t(j));
+                            // A mirror's or glass's sphere close by is no gap: the specular transport
+                            // carries what it reflects. (Read as the patch's own light as well, the floor
+                            // under cornell-glass's glass ball had its light twice: at --grade-contacts 0,
+                            // its quarter of the floor +0.63% over 8 seeds, +0.06% without.)
+                            if (h.t < gap && !rays.onExactSphere(j)) gapFlags[size_t(k)] = kCloseHit, ++close;
+                            if (readings) {
+                                const Vec3 x = origin + h.t * dir - patches.centroid[j];
+                                isNear[size_t(k)] = h.t < nearRadii * patches.radius[j] ? kNear : kFar;
+                                offset[size_t(k)] = {float(x.dot(tangentU[j])), float(x.dot(tangentV[j]))};
+                            }
+                        }
+                    }
+                    if (wholly) {  // no light reaches it, none leaves it
+                        for (int32_t j : touched) hits[size_t(j)] = 0;
+                        exposed[i] = 0;
+                        g_castRays.add(uint64_t(wholly + followed));
+                        continue;
+                    }
+                    // The origins in the open, and their share of the patch (all of them but in a solid).
+                    const int open = count - inside;
+                    exposed[i] = float(open) / float(count);
+                    if (inside > 0 && open > 0) {  // the centroid of the uncovered part, by its origins
+                        Vec3 sum = Vec3::Zero();
+                        for (int k = 0; k < count; ++k)
+                            if (!isInside[size_t(k)]) sum += origins[size_t(k)] - patches.centroid[i];
+                        read.shift[i] = {float(sum.dot(tangentU[i]) / open), float(sum.dot(tangentV[i]) / open)};
+                    }
+                    // Origins in a narrow gap: where at least 1 in kGapShare of the rays landed within the gap
+                    // distance, each origin in the open whose patch normal meets a front face that near. A
+                    // patch wholly in a gap (a shelf's back panel, facing the wall 1 cm behind it) holds
+                    // the gap's light: what its rays meet within the gap is read as its own, not as the
+                    // light the room sees of the far side (which would light the gap from the room).
+                    int enclosed = 0;
+                    if (close > 0 && close * kGapShare >= open) {
+                        const int before = followed;
+                        for (int k = 0; k < count; ++k) {
+                            if (isInside[size_t(k)] || (gapFlags[size_t(k)] & kBackHit)) continue;
+                            const Hit h = rays.intersect(origins[size_t(k)], n0, 0, gap, RayView::Patches);
+                            ++followed;
+                            if (h.patch >= 0 && !rays.onExactSphere(size_t(h.patch)) &&
+                                patches.normal[size_t(h.patch)].dot(n0) < 0)
+                                gapFlags[size_t(k)] |= kInGap, ++enclosed;
+                        }
+                        g_gapRays.add(uint64_t(followed - before));
+                        if (enclosed > 0 && open - backs - enclosed <= 0) {
+                            for (int k = 0; k < count; ++k) {
+                                // What the gap's origins meet within it: their own patch's light.
+                                if ((gapFlags[size_t(k)] & (kInGap | kCloseHit)) != (kInGap | kCloseHit)) continue;
+                                --hits[size_t(landed[size_t(k)])];
+                                if (hits[i]++ == 0) touched.push_back(int32_t(i));
+                                landed[size_t(k)] = int32_t(i);
+                                const Vec3 x = origins[size_t(k)] - patches.centroid[i];
+                                isNear[size_t(k)] = readings ? kNear : 0;
+                                offset[size_t(k)] = {float(x.dot(tangentU[i])), float(x.dot(tangentV[i]))};
+                            }
+                            enclosed = 0;
+                            std::fill(gapFlags.begin(), gapFlags.begin() + count, 0);
+                        }
+                    }
+                    std::vector<std::pair<int32_t, float>>& row = entries[i];
+                    if (open == 0) {  // wholly inside a solid: no light reaches it
+                        g_castRays.add(uint64_t(count + followed));
+                        continue;
+                    }
+                    // The analytic columns, computed as the analytic matrix computes them (over the whole
+                    // patch, whose covered part sees no source), then as a mean over the uncovered part.
+                    // A row cast again measures them again too, with its share more visibility rays (a
+                    // stream of their own): a floor patch in a desk's penumbra reads its lamp through a few
+                    // rays, and that noise is what its neighbours gather (EntryVariance).
+                    FormFactorSettings visibility = settings;
+                    visibility.visibilityRays = settings.visibilityRays * std::clamp(count / baseCount, 1, 8);
+                    const Stream stream = raysFor.empty() ? Stream::Visibility : Stream::VisibilityAgain;
+                    double exact = 0;
+                    rowVariance.clear();
+                    const Timer columns;
+                    if (shafts) {
+                        const ShaftEnd receiver = patchEnd(patches, i);
+                        for (size_t e = 0; e < sourceEnds.size(); ++e)
+                            proved[e] = shafts->clear(receiver, sourceEnds[e].end);
+                    }
+                    for (size_t a = 0; a < columnCount; ++a) {
+                        const size_t j = analytic[a];
+                        double whole, variance = 0;
+                        const bool clear = endOf[a] >= 0 && proved[size_t(endOf[a])];
+                        if (!clear && wall[a] >= 0 && hidesWholly(occluders[size_t(wall[a])], patches, i, j)) {
+                            whole = 0;
+                            ++myHidden;
+                        } else {
+                            myProved += clear;
+                            whole = frontFormFactor(patches, rays, i, j, visibility, &blockers[a], &variance, stream,
+                                                    clear);
+                            const Blockers& by = blockers[a];
+                            const int last = by.patch[(size_t(by.next) + by.patch.size() - 1) % by.patch.size()];
+                            if (whole == 0 && last >= 0) {
+                                const int o = patches.object[size_t(last)];
+                                if (o != wall[a] && hidesWholly(occluders[size_t(o)], patches, i, j)) wall[a] = o;
+                            }
+                        }
+                        const double f = whole / exposed[i];
+                        if (f > 0) row.push_back({int32_t(j), float(f)});
+                        if (variance > 0)
+                            rowVariance.push_back(
+                                {int32_t(i), int32_t(j), float(variance / (double(exposed[i]) * exposed[i]))});
+                        exact += f;
+                    }
+                    if (!analytic.empty()) analyticNanos += int64_t(columns.seconds() * 1e9);
+                    // Scale the rays' other fates so that all fates sum to one; should every ray have met an
+                    // analytic column (no other fate to scale), those columns take the whole row.
+                    const double rayShare = double(analyticHits) / open;
+                    double scale = 1;
+                    if (!analytic.empty() && rayShare < 1)
+                        scale = std::max(0.0, 1 - exact) / (1 - rayShare);
+                    else if (!analytic.empty() && exact > 0)
+                        for (auto& e : row) e.second = float(e.second / exact);
+                    for (int32_t j : touched) {
+                        if (hits[size_t(j)] > 0) row.push_back({j, float(scale * hits[size_t(j)] / open)});
+                        hits[size_t(j)] = 0;
+                    }
+                    std::sort(row.begin(), row.end());
+                    collectNear(
+                        kNear, [](int) { return true; }, scale / open, read.rows[i]);
+                    collectNear(
+                        kFar, [](int) { return true; }, scale / open, read.farRows[i]);
+                    // A_i F(i -> back of j), with the light of the uncovered part, exposed[i] A_i.
+                    for (const auto& [j, h] : backHits)
+                        myBack.push_back({int(i), j, scale * patches.area[i] * double(h) / double(count)});
+                    if (backs > 0 || enclosed > 0) {
+                        // Part of the patch is hidden: what the rest of the scene sees is the light of each
+                        // point weighted by how much of the scene sees it, its share of directions that
+                        // meet no back face, and none if it lies in a gap. That weight is a second ray from
+                        // the origin, independent of the first: an origin's light counts where its second
+                        // ray meets no back face, over the origins whose first ray met none (without back
+                        // faces, every origin not in a gap counts). The row above stays as the mean.
+                        const int unhidden = open - backs - enclosed;
+                        seen[i] = float(unhidden) / float(open);
+                        ++hidden;
+                        if (enclosed > 0) ++inGaps;
+                        meanEntries[i].swap(row);
+                        read.meanRows[i].swap(read.rows[i]);
+                        read.farMeanRows[i].swap(read.farRows[i]);
+                        int second = 0;
+                        touched.clear();
+                        std::vector<char> counted(static_cast<size_t>(count), 0);
+                        for (int k = 0; k < count; ++k) {
+                            const int32_t j = landed[size_t(k)];
+                            if (j < 0 || (gapFlags[size_t(k)] & kInGap)) continue;
+                            if (backs == 0) {
+                                counted[size_t(k)] = 1;
+                                if (hits[size_t(j)]++ == 0) touched.push_back(j);
+                                continue;
+                            }
+                            const double e1 = rng.uniform();
+                            const Vec3 dir = around(e1, rng.uniform());
+                            const Hit h = rays.intersect(origins[size_t(k)], dir, 0, 1e30, RayView::Patches);
+                            ++second;
+                            if (h.patch >= 0 && patches.normal[size_t(h.patch)].dot(dir) >= 0) continue;
                             counted[size_t(k)] = 1;
                             if (hits[size_t(j)]++ == 0) touched.push_back(j);
-                            continue;
                         }
-                        const double e1 = rng.uniform();
-                        const Vec3 dir = around(e1, rng.uniform());
-                        const Hit h = rays.intersect(origins[size_t(k)], dir, 0, 1e30, RayView::Patches);
-                        ++second;
-                        if (h.patch >= 0 && patches.normal[size_t(h.patch)].dot(dir) >= 0) continue;
-                        counted[size_t(k)] = 1;
-                        if (hits[size_t(j)]++ == 0) touched.push_back(j);
+                        if (unhidden > 0)
+                            for (const char reach : {kNear, kFar})
+                                collectNear(
+                                    reach, [&](int k) { return counted[size_t(k)] != 0; }, scale / unhidden,
+                                    reach == kNear ? read.rows[i] : read.farRows[i]);
+                        followed += second;
+                        if (unhidden > 0) {
+                            // The analytic columns by their mean over the patch, which the hidden part,
+                            // seeing little of any source, adds almost nothing to.
+                            for (const auto& [j, f] : meanEntries[i])
+                                if (j < int32_t(analyticColumns.size()) && analyticColumns[size_t(j)])
+                                    row.push_back({j, float(double(f) * open / unhidden)});
+                            for (int32_t j : touched) row.push_back({j, float(scale * hits[size_t(j)] / unhidden)});
+                            std::sort(row.begin(), row.end());
+                            for (auto& e : rowVariance)
+                                e.variance *= float(double(open) * open / (double(unhidden) * unhidden));
+                        }
+                        if (unhidden <= 0) rowVariance.clear();
+                        for (int32_t j : touched) hits[size_t(j)] = 0;
                     }
-                    if (unhidden > 0)
-                        for (const char reach : {kNear, kFar})
-                            collectNear(
-                                reach, [&](int k) { return counted[size_t(k)] != 0; }, scale / unhidden,
-                                reach == kNear ? read.rows[i] : read.farRows[i]);
-                    followed += second;
-                    if (unhidden > 0) {
-                        // The analytic columns by their mean over the patch, which the hidden part,
-                        // seeing little of any source, adds almost nothing to.
-                        for (const auto& [j, f] : meanEntries[i])
-                            if (j < int32_t(analyticColumns.size()) && analyticColumns[size_t(j)])
-                                row.push_back({j, float(double(f) * open / unhidden)});
-                        for (int32_t j : touched) row.push_back({j, float(scale * hits[size_t(j)] / unhidden)});
-                        std::sort(row.begin(), row.end());
-                        for (auto& e : rowVariance)
-                            e.variance *= float(double(open) * open / (double(unhidden) * unhidden));
-                    }
-                    if (unhidden <= 0) rowVariance.clear();
-                    for (int32_t j : touched) hits[size_t(j)] = 0;
+                    myVariance.insert(myVariance.end(), rowVariance.begin(), rowVariance.end());
+                    g_castRays.add(uint64_t(count + followed));
                 }
-                myVariance.insert(myVariance.end(), rowVariance.begin(), rowVariance.end());
-                g_castRays.add(uint64_t(count + followed));
-            }
-            pairsHidden += myHidden;
-            pairsProved += myProved;
-            std::lock_guard<std::mutex> lock(backMutex);
-            back.insert(back.end(), myBack.begin(), myBack.end());
-            entryVariance.insert(entryVariance.end(), myVariance.begin(), myVariance.end());
-        },
-        8);
+                settle();
+                pairsHidden += myHidden;
+                pairsProved += myProved;
+                std::lock_guard<std::mutex> lock(backMutex);
+                back.insert(back.end(), myBack.begin(), myBack.end());
+                entryVariance.insert(entryVariance.end(), myVariance.begin(), myVariance.end());
+            },
+            8);
+    };
+    const std::vector<int> owner = castShared(wanted, rowSeconds, castRows);
     progress.done();
+    std::vector<size_t> own;
+    for (size_t i : wanted)
+        if (owner[i] == cluster::rank()) own.push_back(i);
+    if (cluster::distributed()) {
+        // Every rank's rows, readings, back transfers and tallies on every rank, as one process makes them.
+        cluster::Packer mine;
+        for (size_t i : own) {
+            mine.put(entries[i]), mine.put(meanEntries[i]), mine.put(exposed[i]), mine.put(seen[i]);
+            mine.put(read.shift[i]), mine.put(read.rows[i]), mine.put(read.meanRows[i]);
+            mine.put(read.farRows[i]), mine.put(read.farMeanRows[i]);
+        }
+        mine.put(back), mine.put(entryVariance);
+        mine.put(std::array<uint64_t, 7>{pairsHidden, pairsProved, uint64_t(int64_t(analyticNanos)), hidden, inGaps,
+                                         firstRays, rowsCast});
+        const std::vector<std::string> all = cluster::allGather(mine.bytes);
+        for (int r = 0; r < cluster::size(); ++r) {
+            if (r == cluster::rank()) continue;
+            cluster::Unpacker from(all[size_t(r)]);
+            for (size_t i = 0; i < n; ++i) {
+                if (owner[i] != r) continue;
+                from.get(entries[i]), from.get(meanEntries[i]), from.get(exposed[i]), from.get(seen[i]);
+                from.get(read.shift[i]), from.get(read.rows[i]), from.get(read.meanRows[i]);
+                from.get(read.farRows[i]), from.get(read.farMeanRows[i]);
+            }
+            std::vector<BackTransfer> theirBack;
+            std::vector<FormFactorMatrix::EntryVariance> theirVariance;
+            std::array<uint64_t, 7> tally{};
+            from.get(theirBack), from.get(theirVariance), from.get(tally);
+            PENUMBRA_CHECK(from.done());
+            back.insert(back.end(), theirBack.begin(), theirBack.end());
+            entryVariance.insert(entryVariance.end(), theirVariance.begin(), theirVariance.end());
+            pairsHidden += tally[0], pairsProved += tally[1], analyticNanos += int64_t(tally[2]);
+            hidden += size_t(tally[3]), inGaps += size_t(tally[4]), firstRays += tally[5], rowsCast += size_t(tally[6]);
+        }
+    }
     // The slopes need every patch's uncovered part.
     if (readings) slopeWeights(patches, exposed, read);
     std::vector<uint64_t> start, meanStart;
