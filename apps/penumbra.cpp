@@ -22,6 +22,7 @@
 #include "core/parallel.h"
 #include "core/timer.h"
 #include "io/atomic_file.h"
+#include "io/checkpoint.h"
 #include "io/export.h"
 #include "io/image_io.h"
 #include "io/output_set.h"
@@ -55,6 +56,7 @@ struct SolveCli {
     SolveOptions options;
     double maxMemoryGiB = 0;
     int viewSpp = 4;
+    bool resume = false;  // solve --resume: carry on from OUT/checkpoint.bin
     CLI::Option *patches = nullptr, *perObject = nullptr, *ffRays = nullptr, *ffNoise = nullptr,
                 *specularRays = nullptr, *vertexRadiosity = nullptr;
 
@@ -240,7 +242,32 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
     if (scene.hasCamera) names.insert(names.end(), {"radiosity.exr", "radiosity.png"});
     std::optional<OutputSet> outputs;
     if (cluster::leader()) outputs.emplace(s.out, names);
-    const SolveOptions options = s.resolved(common);
+    SolveOptions options = s.resolved(common);
+    // The ray-cast rows go into OUT/checkpoint.bin as they are made; with --resume, those of a killed
+    // run are read back (io/checkpoint.h). The file goes when this run ends, written or failed: only a
+    // killed run leaves it.
+    SolveCheckpoint checkpoint((std::filesystem::path(s.out) / "checkpoint.bin").string(),
+                               checkpointIdentity(scene.fingerprint, options));
+    struct RemoveAtEnd {
+        SolveCheckpoint& c;
+        ~RemoveAtEnd() { c.remove(); }
+    } removeAtEnd{checkpoint};
+    if (s.resume) {
+        std::string bytes;
+        if (cluster::leader()) {
+            std::ifstream in((std::filesystem::path(s.out) / "checkpoint.bin").string(), std::ios::binary);
+            bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+        }
+        bytes = cluster::broadcast(bytes);
+        if (bytes.empty()) {
+            logInfo("--resume: no checkpoint in ", s.out, ": solving from the start");
+        } else {
+            checkpoint.resume(bytes);
+            logInfo("--resume: carrying on from ", s.out, "/checkpoint.bin (", checkpoint.passesResumed(),
+                    " ray-cast passes saved)");
+        }
+    }
+    options.formFactors.checkpoint = &checkpoint;
     // A report balances emitted = absorbed + escaped to 1e-4 of the emitted power (the contract's
     // check-report): a looser tolerance stopped with up to that much unshot and wrote a report
     // that failed it (--tolerance 1e308: 17% unaccounted, exit 0).
@@ -643,6 +670,8 @@ int main(int argc, char** argv) {
     CLI::App* solveCmd = app.add_subcommand("solve", "View-independent radiosity solve");
     solveCmd->add_option("scene", solve.scene, "Scene JSON file")->required();
     solveCmd->add_option("--out", solve.out, "Output directory (report.json, solution.bin, ...)")->required();
+    solveCmd->add_flag("--resume", solve.resume,
+                       "Carry on from the checkpoint a killed solve left in --out (same scene, settings and build)");
     solveCmd->add_option("--view-spp", solve.viewSpp, "Samples per pixel of the radiosity picture")
         ->capture_default_str();
     addSolveOptions(solveCmd, solve);
@@ -839,6 +868,8 @@ int main(int argc, char** argv) {
             return 0;
         }();
         releaseHeldLog();
+        if (cluster::distributed())
+            logInfo("mpirun: rank 0 sent ", double(cluster::bytesSent()) / (1 << 20), " MiB to the other ranks");
         cluster::stop();
         return status;
     } catch (const Error& e) {

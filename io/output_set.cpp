@@ -142,6 +142,16 @@ OutputSet::OutputSet(const std::string& dir, const std::vector<std::string>& nam
             throw Error(cat(target.string(), ": exists and is not a file, so it cannot be replaced by the output"));
         }
     }
+    // A run killed outright (SIGKILL, a lost host) left its staging folder: its process is gone, so
+    // it goes now. (Staging folders of live runs, renders of other images into this folder, stay.)
+    for (const fs::directory_entry& e : fs::directory_iterator(dir_, ec)) {
+        const std::string name = e.path().filename().string(), prefix = ".penumbra-staging-";
+        if (name.rfind(prefix, 0) != 0 || name.size() == prefix.size()) continue;
+        const std::string digits = name.substr(prefix.size());
+        if (digits.find_first_not_of("0123456789") != std::string::npos || digits.size() > 9) continue;
+        const pid_t pid = pid_t(std::stol(digits));
+        if (pid != getpid() && kill(pid, 0) != 0 && errno == ESRCH) fs::remove_all(e.path(), ec);
+    }
     staging_ = (fs::path(dir_) / cat(".penumbra-staging-", getpid())).string();
     if (mkdir(staging_.c_str(), 0777) != 0) {
         const int error = errno;

@@ -3,6 +3,7 @@
 // naming it and no output left (docs/distributed.md).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -104,4 +105,76 @@ TEST(Cluster, ARankKilledStopsTheJobAndLeavesNoOutput) {
     }
     EXPECT_FALSE(fs::exists(out + "/solve")) << "the solve's folder is left";
     EXPECT_FALSE(fs::exists(out + "/render")) << "the render's folder is left";
+}
+
+namespace {
+
+// The files a folder holds, names sorted (hidden ones too).
+std::vector<std::string> filesIn(const std::string& dir) {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+}
+
+const std::string kResumable = sceneFile("cornell-glass.json") + " --form-factors rays --patches 800 --quiet";
+// Every 150 rows cast, a save (PENUMBRA_TEST_CHECKPOINT_ROWS): about 14 in a solve of this scene.
+const std::string kOftenSaved = "PENUMBRA_TEST_CHECKPOINT_ROWS=150 ";
+
+}  // namespace
+
+// A solve killed by SIGKILL right after its 1st, 4th, 8th and 12th save (in the first ray-cast pass,
+// at its end, and in the second) and then resumed writes the uninterrupted solve's solution.bin byte
+// for byte, alone and under mpirun; the killed run's staging folder and the checkpoint are gone after.
+TEST(Checkpoint, ASolveKilledAndResumedEqualsTheUninterruptedOne) {
+    const std::string out = test::tempDir() + "/checkpoint";
+    fs::remove_all(out);
+    ASSERT_EQ(run(cat("solve ", kResumable, " --out ", out, "/whole")).status, 0);
+    const std::string whole = bytesOf(out + "/whole/solution.bin");
+    ASSERT_FALSE(whole.empty());
+    for (int k : {1, 4, 8, 12}) {
+        const std::string dir = cat(out, "/killed-", k);
+        const CommandResult killed =
+            run(cat("solve ", kResumable, " --out ", dir), cat(kOftenSaved, "PENUMBRA_TEST_KILL_AT_SAVE=", k, " "));
+        ASSERT_EQ(killed.status, 128 + 9) << "save " << k << ": " << killed.output;
+        ASSERT_TRUE(fs::exists(dir + "/checkpoint.bin")) << "save " << k;
+        const CommandResult resumed = run(cat("solve ", kResumable, " --out ", dir, " --resume"));
+        ASSERT_EQ(resumed.status, 0) << resumed.output;
+        EXPECT_TRUE(bytesOf(dir + "/solution.bin") == whole) << "killed after save " << k;
+        EXPECT_EQ(filesIn(dir), (std::vector<std::string>{"convergence.csv", "radiosity.exr", "radiosity.png",
+                                                          "report.json", "solution.bin"}));
+    }
+    // Under mpirun the leader saves each pass once its rows are exchanged, and dies after its first
+    // save (the first pass's end); the job is resumed with 3 ranks.
+    const std::string dir = out + "/killed-mpi";
+    const CommandResult killed =
+        runRanks(2, cat("solve ", kResumable, " --out ", dir), cat(kOftenSaved, "PENUMBRA_TEST_KILL_AT_SAVE=1"));
+    ASSERT_NE(killed.status, 0) << killed.output;
+    ASSERT_TRUE(fs::exists(dir + "/checkpoint.bin"));
+    const CommandResult resumed = runRanks(3, cat("solve ", kResumable, " --out ", dir, " --resume"));
+    ASSERT_EQ(resumed.status, 0) << resumed.output;
+    EXPECT_TRUE(bytesOf(dir + "/solution.bin") == whole) << "killed under mpirun";
+    EXPECT_FALSE(fs::exists(dir + "/checkpoint.bin"));
+}
+
+// A checkpoint made for another scene, or with other settings, is refused by name, and kept for the
+// resume that matches it.
+TEST(Checkpoint, OneForAnotherSceneOrOtherSettingsIsRefusedAndKept) {
+    const std::string dir = test::tempDir() + "/checkpoint-other";
+    fs::remove_all(dir);
+    ASSERT_EQ(run(cat("solve ", kResumable, " --out ", dir), kOftenSaved + "PENUMBRA_TEST_KILL_AT_SAVE=2 ").status,
+              128 + 9);
+    const CommandResult scene = run(
+        cat("solve ", sceneFile("cornell-box.json"), " --form-factors rays --patches 800 --out ", dir, " --resume"));
+    EXPECT_EQ(scene.status, 1) << scene.output;
+    EXPECT_NE(scene.output.find("checkpoint.bin: this checkpoint was made for another scene"), std::string::npos)
+        << scene.output;
+    const CommandResult settings = run(cat("solve ", kResumable, " --ff-rays 100 --out ", dir, " --resume"));
+    EXPECT_EQ(settings.status, 1) << settings.output;
+    EXPECT_NE(settings.output.find("made with other settings (ff_rays=144, here ff_rays=100)"), std::string::npos)
+        << settings.output;
+    EXPECT_TRUE(fs::exists(dir + "/checkpoint.bin"));
+    const CommandResult resumed = run(cat("solve ", kResumable, " --out ", dir, " --resume"));
+    EXPECT_EQ(resumed.status, 0) << resumed.output;
+    EXPECT_FALSE(fs::exists(dir + "/checkpoint.bin"));
 }

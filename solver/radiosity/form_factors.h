@@ -18,6 +18,18 @@
 
 namespace penumbra {
 
+// Where the ray-cast form factors keep the rows they have cast, so that a killed solve carries on
+// from them (io/checkpoint.h holds the file; `solve --resume`). Each castFormFactors call of a solve
+// is one pass, numbered in order; a pass's rows are packed bytes (ray_form_factors.cpp).
+class CastCheckpoint {
+public:
+    virtual ~CastCheckpoint() = default;
+    virtual int beginPass() = 0;                               // this pass's number: 0, 1, ...
+    virtual const std::string& savedRows(int pass) const = 0;  // empty: none saved
+    virtual bool due() const = 0;                              // time to save the rows cast so far
+    virtual void save(int pass, std::string rows) = 0;         // the pass's rows so far, atomically
+};
+
 struct FormFactorSettings {
     CubatureSettings cubature;
     int visibilityRays = 4;  // per pair to decide, as many again to measure (16x where partly visible)
@@ -31,6 +43,7 @@ struct FormFactorSettings {
     // them (solver/shafts.h).
     bool clearShafts = true;
     uint64_t seed = 1;
+    CastCheckpoint* checkpoint = nullptr;  // --form-factors rays: rows kept for a resume (none: not kept)
 };
 
 struct BackTransfer {

@@ -5,6 +5,8 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <map>
 #include <mutex>
 
@@ -34,18 +36,33 @@ const Counter g_gapRays("form_factors.gap_rays",
 // first (Graham's longest-processing-time rule). Every rank makes the same choice from the same
 // exchanged times; which rank casts a row changes nothing in it.
 constexpr size_t kRowBlock = 16, kProbeStride = 16;
-template <typename CastRows>
-std::vector<int> castShared(const std::vector<size_t>& wanted, const std::vector<float>& rowSeconds,
-                            const CastRows& castRows) {
-    const size_t n = rowSeconds.empty() ? (wanted.empty() ? 0 : wanted.back() + 1) : rowSeconds.size();
+// Alone, the rows go in segments of about kSegmentSeconds, castSoFar(rows done) after each (for the
+// checkpoint); PENUMBRA_TEST_CHECKPOINT_ROWS sets a segment's rows (tests).
+constexpr double kSegmentSeconds = 5;
+template <typename CastRows, typename CastSoFar>
+std::vector<int> castShared(const std::vector<size_t>& wanted, size_t n, const std::vector<float>& rowSeconds,
+                            const CastRows& castRows, const CastSoFar& castSoFar) {
     std::vector<int> owner(n, -1);
     if (!cluster::distributed()) {
-        castRows(wanted);
+        const char* fixed = std::getenv("PENUMBRA_TEST_CHECKPOINT_ROWS");
+        size_t segment = fixed ? size_t(std::max(1, std::atoi(fixed))) : 512;
+        for (size_t at = 0; at < wanted.size();) {
+            const size_t take = std::min(segment, wanted.size() - at);
+            const Timer timer;
+            castRows(
+                std::vector<size_t>(wanted.begin() + std::ptrdiff_t(at), wanted.begin() + std::ptrdiff_t(at + take)));
+            at += take;
+            castSoFar(at);
+            if (!fixed)
+                segment =
+                    size_t(std::clamp(double(take) * kSegmentSeconds / std::max(timer.seconds(), 1e-3), 64.0, 1e6));
+        }
         for (size_t i : wanted) owner[i] = 0;
         return owner;
     }
     const int ranks = cluster::size(), me = cluster::rank();
     const size_t blocks = (n + kRowBlock - 1) / kRowBlock;
+    (void)castSoFar;  // under mpirun the checkpoint is made at the pass's end, once the rows are exchanged
     const auto rowsOf = [&](const std::vector<size_t>& of) {
         std::vector<char> in(blocks, 0);
         for (size_t b : of) in[b] = 1;
@@ -746,42 +763,108 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             },
             8);
     };
-    const std::vector<int> owner = castShared(wanted, rowSeconds, castRows);
+    // Each row's whole product, packed for the other ranks and for the checkpoint: its entries and
+    // mean entries, its uncovered and seen shares, its readings, its back transfers and variances.
+    const auto packRowsOf = [&](const std::vector<size_t>& list) {
+        std::vector<char> in(n, 0);
+        for (size_t i : list) in[i] = 1;
+        std::vector<BackTransfer> backs;
+        std::vector<FormFactorMatrix::EntryVariance> variances;
+        for (const BackTransfer& b : back)
+            if (in[size_t(b.from)]) backs.push_back(b);
+        for (const auto& v : entryVariance)
+            if (in[size_t(v.row)]) variances.push_back(v);
+        sortBackTransfers(backs);
+        sortByRow(variances);
+        cluster::Packer p;
+        p.put(uint64_t(list.size()));
+        size_t b = 0, v = 0;
+        for (size_t i : list) {
+            p.put(uint64_t(i)), p.put(entries[i]), p.put(meanEntries[i]), p.put(exposed[i]), p.put(seen[i]);
+            p.put(read.shift[i]), p.put(read.rows[i]), p.put(read.meanRows[i]);
+            p.put(read.farRows[i]), p.put(read.farMeanRows[i]);
+            std::vector<BackTransfer> rowBack;
+            std::vector<FormFactorMatrix::EntryVariance> rowVariance;
+            for (; b < backs.size() && size_t(backs[b].from) <= i; ++b)
+                if (size_t(backs[b].from) == i) rowBack.push_back(backs[b]);
+            for (; v < variances.size() && size_t(variances[v].row) <= i; ++v)
+                if (size_t(variances[v].row) == i) rowVariance.push_back(variances[v]);
+            p.put(rowBack), p.put(rowVariance);
+        }
+        return std::move(p.bytes);
+    };
+    // The rows packed as above into their places; marks them in `done`.
+    const auto unpackRows = [&](const std::string& bytes, std::vector<char>& done) {
+        cluster::Unpacker u(bytes);
+        uint64_t count = 0;
+        u.get(count);
+        for (uint64_t k = 0; k < count; ++k) {
+            uint64_t i = 0;
+            u.get(i);
+            PENUMBRA_CHECK(i < n);
+            u.get(entries[i]), u.get(meanEntries[i]), u.get(exposed[i]), u.get(seen[i]);
+            u.get(read.shift[i]), u.get(read.rows[i]), u.get(read.meanRows[i]);
+            u.get(read.farRows[i]), u.get(read.farMeanRows[i]);
+            std::vector<BackTransfer> rowBack;
+            std::vector<FormFactorMatrix::EntryVariance> rowVariance;
+            u.get(rowBack), u.get(rowVariance);
+            back.insert(back.end(), rowBack.begin(), rowBack.end());
+            entryVariance.insert(entryVariance.end(), rowVariance.begin(), rowVariance.end());
+            done[i] = 1;
+        }
+        PENUMBRA_CHECK(u.done());
+    };
+    // The rows a killed run of the same solve cast in this pass (solve --resume) are not cast again.
+    CastCheckpoint* checkpoint = settings.checkpoint;
+    const int pass = checkpoint ? checkpoint->beginPass() : 0;
+    std::vector<char> done(n, 0);
+    std::vector<size_t> restored;
+    if (checkpoint && !checkpoint->savedRows(pass).empty()) {
+        unpackRows(checkpoint->savedRows(pass), done);
+        for (size_t i = 0; i < n; ++i)
+            if (done[i]) restored.push_back(i);
+        wanted.erase(std::remove_if(wanted.begin(), wanted.end(), [&](size_t i) { return done[i] != 0; }),
+                     wanted.end());
+        logInfo("form factors (rays): ", restored.size(), " rows of this pass from the checkpoint, ", wanted.size(),
+                " to cast");
+    }
+    // Alone, the rows cast so far go into the checkpoint every so often (CastCheckpoint::due).
+    const auto castSoFar = [&](size_t upTo) {
+        if (!checkpoint || !checkpoint->due()) return;
+        std::vector<size_t> list = restored;
+        list.insert(list.end(), wanted.begin(), wanted.begin() + std::ptrdiff_t(upTo));
+        std::sort(list.begin(), list.end());
+        checkpoint->save(pass, packRowsOf(list));
+    };
+    const std::vector<int> owner = castShared(wanted, n, rowSeconds, castRows, castSoFar);
     progress.done();
     std::vector<size_t> own;
     for (size_t i : wanted)
         if (owner[i] == cluster::rank()) own.push_back(i);
     if (cluster::distributed()) {
-        // Every rank's rows, readings, back transfers and tallies on every rank, as one process makes them.
-        cluster::Packer mine;
-        for (size_t i : own) {
-            mine.put(entries[i]), mine.put(meanEntries[i]), mine.put(exposed[i]), mine.put(seen[i]);
-            mine.put(read.shift[i]), mine.put(read.rows[i]), mine.put(read.meanRows[i]);
-            mine.put(read.farRows[i]), mine.put(read.farMeanRows[i]);
-        }
-        mine.put(back), mine.put(entryVariance);
-        mine.put(std::array<uint64_t, 7>{pairsHidden, pairsProved, uint64_t(int64_t(analyticNanos)), hidden, inGaps,
-                                         firstRays, rowsCast});
-        const std::vector<std::string> all = cluster::allGather(mine.bytes);
+        // Every rank's rows and tallies on every rank, as one process makes them.
+        cluster::Packer tallies;
+        tallies.put(std::array<uint64_t, 7>{pairsHidden, pairsProved, uint64_t(int64_t(analyticNanos)), hidden, inGaps,
+                                            firstRays, rowsCast});
+        const std::vector<std::string> all = cluster::allGather(packRowsOf(own) + tallies.bytes);
         for (int r = 0; r < cluster::size(); ++r) {
             if (r == cluster::rank()) continue;
-            cluster::Unpacker from(all[size_t(r)]);
-            for (size_t i = 0; i < n; ++i) {
-                if (owner[i] != r) continue;
-                from.get(entries[i]), from.get(meanEntries[i]), from.get(exposed[i]), from.get(seen[i]);
-                from.get(read.shift[i]), from.get(read.rows[i]), from.get(read.meanRows[i]);
-                from.get(read.farRows[i]), from.get(read.farMeanRows[i]);
-            }
-            std::vector<BackTransfer> theirBack;
-            std::vector<FormFactorMatrix::EntryVariance> theirVariance;
+            // The rows, then the tallies (their last 56 bytes).
+            const size_t tail = sizeof(std::array<uint64_t, 7>);
+            PENUMBRA_CHECK(all[size_t(r)].size() >= tail);
+            unpackRows(all[size_t(r)].substr(0, all[size_t(r)].size() - tail), done);
             std::array<uint64_t, 7> tally{};
-            from.get(theirBack), from.get(theirVariance), from.get(tally);
-            PENUMBRA_CHECK(from.done());
-            back.insert(back.end(), theirBack.begin(), theirBack.end());
-            entryVariance.insert(entryVariance.end(), theirVariance.begin(), theirVariance.end());
+            std::memcpy(tally.data(), all[size_t(r)].data() + all[size_t(r)].size() - tail, tail);
             pairsHidden += tally[0], pairsProved += tally[1], analyticNanos += int64_t(tally[2]);
             hidden += size_t(tally[3]), inGaps += size_t(tally[4]), firstRays += tally[5], rowsCast += size_t(tally[6]);
         }
+    }
+    // The pass done: all its rows into the checkpoint (a stage boundary).
+    if (checkpoint) {
+        std::vector<size_t> all;
+        for (size_t i = 0; i < n; ++i)
+            if (raysFor.empty() || raysFor[i] > 0) all.push_back(i);
+        checkpoint->save(pass, packRowsOf(all));
     }
     // The slopes need every patch's uncovered part.
     if (readings) slopeWeights(patches, exposed, read);

@@ -1,0 +1,143 @@
+#include "io/checkpoint.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
+#include <cstdlib>
+#include <cstring>
+#include <sstream>
+
+#include "core/cluster.h"
+#include "core/error.h"
+#include "core/log.h"
+#include "io/atomic_file.h"
+
+namespace penumbra {
+namespace {
+
+constexpr char kMagic[8] = {'P', 'N', 'B', 'C', 'K', 'P', '0', '1'};
+// Saved when this much casting has passed since the last save: the segments between chances to save
+// take about 5 s (ray_form_factors.cpp), so no more than 30 s of work is ever lost.
+constexpr double kSaveSeconds = 25;
+// Nor is a solve's first save made before this much of it has passed: a solve quicker than that is
+// quicker to run again, and one interrupted (SIGINT, SIGTERM) leaves nothing at all behind.
+constexpr double kFirstSaveSeconds = 2;
+
+double now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
+
+std::vector<std::string> lines(const std::string& text) {
+    std::vector<std::string> out;
+    std::istringstream in(text);
+    for (std::string line; std::getline(in, line);) out.push_back(line);
+    return out;
+}
+
+}  // namespace
+
+std::string checkpointIdentity(uint64_t sceneFingerprint, const SolveOptions& options) {
+    SolveOptions o = options;
+    std::string settings =
+        cat("seed=", o.formFactors.seed, " form_factors=", o.formFactors.method, " solver=", o.solver,
+            " vertex_radiosity=", o.vertexRadiosity, " gather_only=", o.forSolvedIndirectGather);
+    for (const SolveSetting& e : solveSettings(o))
+        settings += cat(" ", e.key, "=", std::visit([](auto* v) { return exact(double(*v)); }, e.value));
+    return cat("format: 1\nbuild: ", PENUMBRA_BUILD, "\nscene: ", sceneFingerprint, "\nsettings: ", settings, "\n");
+}
+
+SolveCheckpoint::SolveCheckpoint(std::string path, std::string identity)
+    : path_(std::move(path)), identity_(std::move(identity)), lastSave_(now()), started_(lastSave_) {}
+
+void SolveCheckpoint::resume(const std::string& bytes) {
+    const auto damaged = [&] { return Error(cat(path_, ": the checkpoint is damaged; solve again without --resume")); };
+    if (bytes.size() < 16 || std::memcmp(bytes.data(), kMagic, 8) != 0)
+        throw Error(cat(path_, ": not a checkpoint of this version of penumbra; solve again without --resume"));
+    size_t at = 8;
+    const auto take = [&](uint64_t& v) {
+        if (at + sizeof v > bytes.size()) throw damaged();
+        std::memcpy(&v, bytes.data() + at, sizeof v);
+        at += sizeof v;
+    };
+    const auto text = [&](std::string& s) {
+        uint64_t length = 0;
+        take(length);
+        if (length > bytes.size() - at) throw damaged();
+        s.assign(bytes.data() + at, size_t(length));
+        at += size_t(length);
+    };
+    std::string identity;
+    text(identity);
+    if (identity != identity_) {
+        // Name what differs: the first line that does.
+        const std::vector<std::string> theirs = lines(identity), ours = lines(identity_);
+        for (size_t k = 0; k < std::max(theirs.size(), ours.size()); ++k) {
+            const std::string a = k < theirs.size() ? theirs[k] : "", b = k < ours.size() ? ours[k] : "";
+            if (a == b) continue;
+            const std::string what = b.substr(0, b.find(':'));
+            if (what == "settings") {
+                // The first setting that differs, by its report.json key.
+                std::istringstream x(a.substr(a.find(':') + 1)), y(b.substr(b.find(':') + 1));
+                for (std::string p, q; x >> p && y >> q;)
+                    if (p != q)
+                        throw Error(cat(path_, ": this checkpoint was made with other settings (", p, ", here ", q,
+                                        "); resume with the same options, or solve again without --resume"));
+            }
+            const std::string why = what == "scene"      ? "another scene (or another version of this scene file)"
+                                    : what == "settings" ? "other settings"
+                                    : what == "build"    ? "another build of penumbra"
+                                                         : "another format";
+            throw Error(cat(path_, ": this checkpoint was made for ", why, " (there '", a, "', here '", b,
+                            "'); solve again without --resume"));
+        }
+    }
+    uint64_t passes = 0;
+    take(passes);
+    if (passes > 1000) throw damaged();
+    saved_.assign(size_t(passes), std::string());
+    for (std::string& rows : saved_) text(rows);
+    if (at != bytes.size()) throw damaged();
+}
+
+int SolveCheckpoint::beginPass() { return next_++; }
+
+const std::string& SolveCheckpoint::savedRows(int pass) const {
+    static const std::string none;
+    return pass >= 0 && size_t(pass) < saved_.size() ? saved_[size_t(pass)] : none;
+}
+
+bool SolveCheckpoint::due() const {
+    return std::getenv("PENUMBRA_TEST_CHECKPOINT_ROWS") || now() - lastSave_ >= kSaveSeconds;
+}
+
+void SolveCheckpoint::save(int pass, std::string rows) {
+    if (pass < 0) return;
+    if (saved_.size() <= size_t(pass)) saved_.resize(size_t(pass) + 1);
+    saved_[size_t(pass)] = std::move(rows);
+    saved_.resize(size_t(pass) + 1);  // a later pass of an older run no longer follows
+    lastSave_ = now();
+    const bool test = std::getenv("PENUMBRA_TEST_CHECKPOINT_ROWS") != nullptr;
+    if (!cluster::leader() || (!test && lastSave_ - started_ < kFirstSaveSeconds)) return;
+    std::string bytes(kMagic, 8);
+    const auto put = [&](const std::string& s) {
+        const uint64_t length = s.size();
+        bytes.append(reinterpret_cast<const char*>(&length), sizeof length);
+        bytes += s;
+    };
+    put(identity_);
+    const uint64_t passes = saved_.size();
+    bytes.append(reinterpret_cast<const char*>(&passes), sizeof passes);
+    for (const std::string& s : saved_) put(s);
+    writeFileAtomic(path_, bytes);
+    // Tests: PENUMBRA_TEST_KILL_AT_SAVE=m kills the run by SIGKILL right after its m-th save.
+    ++saves_;
+    if (const char* kill = std::getenv("PENUMBRA_TEST_KILL_AT_SAVE"); kill && std::atoi(kill) == saves_)
+        std::raise(SIGKILL);
+}
+
+void SolveCheckpoint::remove() {
+    if (saves_ > 0 || !saved_.empty() || next_ > 0) {
+        if (cluster::leader()) ::unlink(path_.c_str());
+    }
+}
+
+}  // namespace penumbra

@@ -1,0 +1,49 @@
+// A solve's checkpoint, DIR/checkpoint.bin: the rows of each ray-cast form-factor pass made so far
+// (CastCheckpoint, form_factors.h), tied to what they depend on: the scene file, the solve's settings
+// and this program's build. Written atomically (a kill leaves the older file or the newer, never half
+// of one), by the leader under mpirun, at least every 30 s of casting and at each pass's end, once
+// the solve has run 2 s (a quicker one is quicker to run again, and leaves nothing behind). `solve
+// --resume` reads it and casts only the rows it lacks; every row is made from its own seeded stream,
+// so the result equals an uninterrupted solve's bit for bit. What a resume makes again: the meshing,
+// and the stages after the last saved pass (specular paths, iterations, vertex values: seconds on
+// the scenes measured, docs/distributed.md).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "solver/radiosity/form_factors.h"
+#include "solver/solve.h"
+
+namespace penumbra {
+
+class SolveCheckpoint : public CastCheckpoint {
+public:
+    // `path`: DIR/checkpoint.bin; `identity`: checkpointIdentity(...).
+    SolveCheckpoint(std::string path, std::string identity);
+    // The saved passes of a killed run, as read from the file (under mpirun, sent by the leader).
+    // Throws Error naming the file and what differs when it was made for another scene, other
+    // settings or another build of penumbra, or when it is damaged.
+    void resume(const std::string& bytes);
+    int beginPass() override;
+    const std::string& savedRows(int pass) const override;
+    bool due() const override;
+    void save(int pass, std::string rows) override;
+    // The solve is over (written, or failed with an error): the file goes.
+    void remove();
+    int passesResumed() const { return int(saved_.size()); }
+
+private:
+    std::string path_, identity_;
+    std::vector<std::string> saved_;  // per pass, its rows
+    int next_ = 0;
+    int saves_ = 0;
+    double lastSave_, started_;
+};
+
+// What a checkpoint's rows depend on, one "name: value" per line: the format, this build of
+// penumbra, the scene file's fingerprint, and every setting of the solve (as report.json has them)
+// with its seed.
+std::string checkpointIdentity(uint64_t sceneFingerprint, const SolveOptions& options);
+
+}  // namespace penumbra
