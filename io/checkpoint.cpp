@@ -18,8 +18,8 @@ namespace {
 
 constexpr char kMagic[8] = {'P', 'N', 'B', 'C', 'K', 'P', '0', '1'};
 // Saved when this much casting has passed since the last save: the segments between chances to save
-// take about 5 s (ray_form_factors.cpp), so no more than 30 s of work is ever lost.
-constexpr double kSaveSeconds = 25;
+// take at most 10 s (ray_form_factors.cpp, and one row), so no more than 30 s of work is ever lost.
+constexpr double kSaveSeconds = 20;
 // Nor is a solve's first save made before this much of it has passed: a solve quicker than that is
 // quicker to run again, and one interrupted (SIGINT, SIGTERM) leaves nothing at all behind.
 constexpr double kFirstSaveSeconds = 2;

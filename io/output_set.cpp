@@ -12,6 +12,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 
 #include "core/error.h"
 #include "io/atomic_file.h"
@@ -76,6 +78,18 @@ void faultPoint(const std::string& what) {
     if (failAt > 0 && ++count == failAt)
         throw Error(cat(what, ": cannot write: No space left on device (injected: PENUMBRA_FAIL_AT=", failAt, ")"));
 }
+
+namespace {
+// Whether process `pid` still runs: it exists and is not a zombie waiting for its parent to read its
+// exit (a run killed under `timeout`, whose parent had gone, stayed one here).
+bool running(pid_t pid) {
+    if (kill(pid, 0) != 0 && errno == ESRCH) return false;
+    std::ifstream stat(cat("/proc/", pid, "/stat"));
+    std::string text((std::istreambuf_iterator<char>(stat)), std::istreambuf_iterator<char>());
+    const size_t paren = text.rfind(')');
+    return !(paren != std::string::npos && paren + 2 < text.size() && text[paren + 2] == 'Z');
+}
+}  // namespace
 
 OutputSet::OutputSet(const std::string& dir, const std::vector<std::string>& names, const std::string& lockName)
     : dir_(dir.empty() ? "." : dir), names_(names) {
@@ -150,7 +164,7 @@ OutputSet::OutputSet(const std::string& dir, const std::vector<std::string>& nam
         const std::string digits = name.substr(prefix.size());
         if (digits.find_first_not_of("0123456789") != std::string::npos || digits.size() > 9) continue;
         const pid_t pid = pid_t(std::stol(digits));
-        if (pid != getpid() && kill(pid, 0) != 0 && errno == ESRCH) fs::remove_all(e.path(), ec);
+        if (pid != getpid() && !running(pid)) fs::remove_all(e.path(), ec);
     }
     staging_ = (fs::path(dir_) / cat(".penumbra-staging-", getpid())).string();
     if (mkdir(staging_.c_str(), 0777) != 0) {

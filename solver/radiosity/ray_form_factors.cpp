@@ -36,33 +36,38 @@ const Counter g_gapRays("form_factors.gap_rays",
 // first (Graham's longest-processing-time rule). Every rank makes the same choice from the same
 // exchanged times; which rank casts a row changes nothing in it.
 constexpr size_t kRowBlock = 16, kProbeStride = 16;
-// Alone, the rows go in segments of about kSegmentSeconds, castSoFar(rows done) after each (for the
-// checkpoint); PENUMBRA_TEST_CHECKPOINT_ROWS sets a segment's rows (tests).
+// Alone, the rows go in segments: castFor(rows, seconds) casts them for at most that long and returns
+// those it left, which go first in the next; castSoFar(rows done) after each (for the checkpoint).
+// A segment's rows follow the last one's rate, at most doubled; PENUMBRA_TEST_CHECKPOINT_ROWS fixes
+// them (tests).
 constexpr double kSegmentSeconds = 5;
-template <typename CastRows, typename CastSoFar>
+template <typename CastRows, typename CastFor, typename CastSoFar>
 std::vector<int> castShared(const std::vector<size_t>& wanted, size_t n, const std::vector<float>& rowSeconds,
-                            const CastRows& castRows, const CastSoFar& castSoFar) {
+                            const CastRows& castRows, const CastFor& castFor, const CastSoFar& castSoFar) {
     std::vector<int> owner(n, -1);
     if (!cluster::distributed()) {
         const char* fixed = std::getenv("PENUMBRA_TEST_CHECKPOINT_ROWS");
-        size_t segment = fixed ? size_t(std::max(1, std::atoi(fixed))) : 512;
-        for (size_t at = 0; at < wanted.size();) {
-            const size_t take = std::min(segment, wanted.size() - at);
-            const Timer timer;
-            castRows(
-                std::vector<size_t>(wanted.begin() + std::ptrdiff_t(at), wanted.begin() + std::ptrdiff_t(at + take)));
+        size_t segment = fixed ? size_t(std::max(1, std::atoi(fixed))) : 256;
+        std::vector<size_t> left;  // of the last segment
+        for (size_t at = 0; at < wanted.size() || !left.empty();) {
+            std::vector<size_t> list = left;
+            const size_t take = std::min(segment > list.size() ? segment - list.size() : 0, wanted.size() - at);
+            list.insert(list.end(), wanted.begin() + std::ptrdiff_t(at), wanted.begin() + std::ptrdiff_t(at + take));
             at += take;
-            castSoFar(at);
+            const Timer timer;
+            left = castFor(list, fixed ? 1e9 : 2 * kSegmentSeconds);
+            castSoFar(at, left);
+            const double rate = double(list.size() - left.size()) / std::max(timer.seconds(), 1e-3);
             if (!fixed)
-                segment =
-                    size_t(std::clamp(double(take) * kSegmentSeconds / std::max(timer.seconds(), 1e-3), 64.0, 1e6));
+                segment = size_t(std::clamp(std::min(rate * kSegmentSeconds, 2.0 * double(list.size())), 64.0, 1e6));
         }
         for (size_t i : wanted) owner[i] = 0;
         return owner;
     }
     const int ranks = cluster::size(), me = cluster::rank();
     const size_t blocks = (n + kRowBlock - 1) / kRowBlock;
-    (void)castSoFar;  // under mpirun the checkpoint is made at the pass's end, once the rows are exchanged
+    (void)castFor,
+        (void)castSoFar;  // under mpirun the checkpoint is made at the pass's end, once the rows are exchanged
     const auto rowsOf = [&](const std::vector<size_t>& of) {
         std::vector<char> in(blocks, 0);
         for (size_t b : of) in[b] = 1;
@@ -446,6 +451,8 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     std::vector<float> rowSeconds(cluster::distributed() ? n : 0, 0.0f);  // thread time of each row cast
     Progress progress("form factors (rays)",
                       int64_t((wanted.size() + size_t(cluster::size()) - 1) / size_t(cluster::size())));
+    std::vector<char> cast(n, 0);  // rows cast by this rank
+    const std::chrono::steady_clock::time_point* segmentEnd = nullptr;
     const auto castRows = [&](const std::vector<size_t>& list) {
         parallelFor(
             int64_t(list.size()),
@@ -510,8 +517,11 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 };
                 for (int64_t ii = begin; ii < end; ++ii, progress.update()) {
                     const size_t i = list[size_t(ii)];
+                    // A segment past its time leaves its remaining rows to the next (castShared).
+                    if (segmentEnd && std::chrono::steady_clock::now() > *segmentEnd) continue;
                     settle();
                     timed = i;
+                    cast[i] = 1;
                     if (!raysFor.empty()) {
                         side = stratumSide(raysFor[i]);
                         count = side * side;
@@ -829,14 +839,33 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                 " to cast");
     }
     // Alone, the rows cast so far go into the checkpoint every so often (CastCheckpoint::due).
-    const auto castSoFar = [&](size_t upTo) {
+    const auto castSoFar = [&](size_t upTo, const std::vector<size_t>& left) {
         if (!checkpoint || !checkpoint->due()) return;
         std::vector<size_t> list = restored;
         list.insert(list.end(), wanted.begin(), wanted.begin() + std::ptrdiff_t(upTo));
         std::sort(list.begin(), list.end());
+        std::vector<size_t> waiting = left;
+        std::sort(waiting.begin(), waiting.end());
+        list.erase(std::remove_if(list.begin(), list.end(),
+                                  [&](size_t i) { return std::binary_search(waiting.begin(), waiting.end(), i); }),
+                   list.end());
         checkpoint->save(pass, packRowsOf(list));
     };
-    const std::vector<int> owner = castShared(wanted, n, rowSeconds, castRows, castSoFar);
+    // Alone, rows cast in segments of at most kSegmentSeconds (then the rest of a segment waits for
+    // the next), the checkpoint saved between them when due.
+    const auto castFor = [&](const std::vector<size_t>& list, double seconds) {
+        const auto end =
+            std::chrono::steady_clock::now() +
+            std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(seconds));
+        segmentEnd = &end;
+        castRows(list);
+        segmentEnd = nullptr;
+        std::vector<size_t> left;
+        for (size_t i : list)
+            if (!cast[i]) left.push_back(i);
+        return left;
+    };
+    const std::vector<int> owner = castShared(wanted, n, rowSeconds, castRows, castFor, castSoFar);
     progress.done();
     std::vector<size_t> own;
     for (size_t i : wanted)
