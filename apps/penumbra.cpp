@@ -330,8 +330,6 @@ Camera cameraFor(const Scene& scene, const RenderCli& c) {
     return camera;
 }
 
-// The stored solution, or a solve made now; `gatherSpp` > 0: for final-gathered images of that many
-// samples per pixel.
 SolveResult solveOrRead(const Scene& scene, const RenderCli& c, SolveCli& s, const CommonOptions& common,
                         int gatherSpp);
 

@@ -39,7 +39,8 @@ int ranksOnHost();
 [[noreturn]] void abortJob(const std::string& message, int code);
 
 // While one lives, this rank works as a job of one (size() 1, rank() 0, the exchanges its own):
-// the leader's work that the others do not share (a solve they wait for, a command one rank runs).
+// the leader's work that the others do not share (reading a stored solution to send them, a command
+// that one rank runs).
 class Alone {
 public:
     Alone();
@@ -51,7 +52,7 @@ private:
     bool was_;
 };
 
-// Whether rank r computes item k of `count` shared items (interleaved: k % size == rank).
+// Whether this rank computes item k of a list dealt out in turn (k % size == rank).
 inline bool owns(int64_t k) { return k % size() == rank(); }
 
 // Every rank's bytes, in rank order, on every rank.
