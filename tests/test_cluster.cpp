@@ -144,8 +144,8 @@ TEST(Checkpoint, ASolveKilledAndResumedEqualsTheUninterruptedOne) {
         EXPECT_EQ(filesIn(dir), (std::vector<std::string>{"convergence.csv", "radiosity.exr", "radiosity.png",
                                                           "report.json", "solution.bin"}));
     }
-    // Under mpirun the leader saves each pass once its rows are exchanged, and dies after its first
-    // save (the first pass's end); the job is resumed with 3 ranks.
+    // Under mpirun the ranks exchange their rows after each round and the leader saves them; it dies
+    // after its first save (after the round of probe rows, mid-pass); the job is resumed with 3 ranks.
     const std::string dir = out + "/killed-mpi";
     const CommandResult killed =
         runRanks(2, cat("solve ", kResumable, " --out ", dir), cat(kOftenSaved, "PENUMBRA_TEST_KILL_AT_SAVE=1"));

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <iterator>
 #include <map>
 #include <mutex>
 
@@ -27,7 +28,6 @@ namespace {
 const Counter g_castRays("form_factors.cast_rays", "rays cast for ray-cast form factors (--form-factors rays)");
 const Counter g_gapRays("form_factors.gap_rays",
                         "of form_factors.cast_rays, those along a patch's normal asking whether an origin is in a gap");
-// How far ray origins are lifted off their patch along its normal: a millionth of the scene's size.
 // Casts the `wanted` rows by castRows(list), and returns which rank cast each row (-1: not wanted).
 // Alone, every row here. Under mpirun the rows go by measured cost, in blocks of kRowBlock neighbours
 // (which cost alike: a room's floor beside its lamp): every kProbeStride-th block is cast first, dealt
@@ -40,10 +40,15 @@ constexpr size_t kRowBlock = 16, kProbeStride = 16;
 // those it left, which go first in the next; castSoFar(rows done) after each (for the checkpoint).
 // A segment's rows follow the last one's rate, at most doubled; PENUMBRA_TEST_CHECKPOINT_ROWS fixes
 // them (tests).
-constexpr double kSegmentSeconds = 5;
-template <typename CastRows, typename CastFor, typename CastSoFar>
+// Under mpirun, each rank casts its rows in rounds of at most kRoundSeconds, after each of which
+// exchange(rows cast, more left here) hands every rank's rows to every rank (and the checkpoint
+// takes them when due) and says whether any rank has rows left: so a job killed mid-pass loses at
+// most a round and the wait for a save.
+constexpr double kSegmentSeconds = 5, kRoundSeconds = 10;
+template <typename CastRows, typename CastFor, typename CastSoFar, typename Exchange>
 std::vector<int> castShared(const std::vector<size_t>& wanted, size_t n, const std::vector<float>& rowSeconds,
-                            const CastRows& castRows, const CastFor& castFor, const CastSoFar& castSoFar) {
+                            const CastRows& castRows, const CastFor& castFor, const CastSoFar& castSoFar,
+                            const Exchange& exchange) {
     std::vector<int> owner(n, -1);
     if (!cluster::distributed()) {
         const char* fixed = std::getenv("PENUMBRA_TEST_CHECKPOINT_ROWS");
@@ -66,8 +71,15 @@ std::vector<int> castShared(const std::vector<size_t>& wanted, size_t n, const s
     }
     const int ranks = cluster::size(), me = cluster::rank();
     const size_t blocks = (n + kRowBlock - 1) / kRowBlock;
-    (void)castFor,
-        (void)castSoFar;  // under mpirun the checkpoint is made at the pass's end, once the rows are exchanged
+    (void)castRows, (void)castSoFar;
+    const auto inRounds = [&](std::vector<size_t> rows) {
+        for (;;) {
+            std::vector<size_t> left = castFor(rows, kRoundSeconds), now;
+            std::set_difference(rows.begin(), rows.end(), left.begin(), left.end(), std::back_inserter(now));
+            if (!exchange(now, !left.empty())) return;
+            rows = std::move(left);
+        }
+    };
     const auto rowsOf = [&](const std::vector<size_t>& of) {
         std::vector<char> in(blocks, 0);
         for (size_t b : of) in[b] = 1;
@@ -84,7 +96,7 @@ std::vector<int> castShared(const std::vector<size_t>& wanted, size_t n, const s
         if (r == me) mine.push_back(b);
     }
     auto t0 = std::chrono::steady_clock::now();
-    castRows(rowsOf(mine));
+    inRounds(rowsOf(mine));
     auto t1 = std::chrono::steady_clock::now();
     // The probes' times, every rank's, on every rank.
     std::vector<std::vector<float>> cost(probes.size());
@@ -121,7 +133,7 @@ std::vector<int> castShared(const std::vector<size_t>& wanted, size_t n, const s
         if (r == me) mine.push_back(b);
     }
     auto t2 = std::chrono::steady_clock::now();
-    castRows(rowsOf(mine));
+    inRounds(rowsOf(mine));
     auto t3 = std::chrono::steady_clock::now();
     // What each rank spent, for the log: how well the expected costs shared the work.
     std::vector<std::array<double, 3>> spent(static_cast<size_t>(ranks));
@@ -138,6 +150,7 @@ std::vector<int> castShared(const std::vector<size_t>& wanted, size_t n, const s
     return owner;
 }
 
+// How far ray origins are lifted off their patch along its normal: a millionth of the scene's size.
 double originLift(const PatchSet& patches) {
     const double diagonal = patches.size() ? patchBounds(patches).diagonal().norm() : 1.0;
     return 1e-6 * std::max(diagonal, 1e-3);
@@ -865,27 +878,38 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
             if (!cast[i]) left.push_back(i);
         return left;
     };
-    const std::vector<int> owner = castShared(wanted, n, rowSeconds, castRows, castFor, castSoFar);
+    // Under mpirun, after each round: every rank's rows on every rank, as one process makes them,
+    // and into the checkpoint when due; whether any rank has rows left.
+    const auto exchange = [&](const std::vector<size_t>& castNow, bool more) {
+        const std::vector<std::string> all = cluster::allGather(packRowsOf(castNow) + char(more ? 1 : 0));
+        bool any = false;
+        for (int r = 0; r < cluster::size(); ++r) {
+            PENUMBRA_CHECK(!all[size_t(r)].empty());
+            any = any || all[size_t(r)].back() != 0;
+            if (r != cluster::rank()) unpackRows(all[size_t(r)].substr(0, all[size_t(r)].size() - 1), done);
+        }
+        for (size_t i : castNow) done[i] = 1;
+        if (checkpoint && checkpoint->due()) {
+            std::vector<size_t> list;
+            for (size_t i = 0; i < n; ++i)
+                if (done[i]) list.push_back(i);
+            checkpoint->save(pass, packRowsOf(list));
+        }
+        return any;
+    };
+    castShared(wanted, n, rowSeconds, castRows, castFor, castSoFar, exchange);
     progress.done();
-    std::vector<size_t> own;
-    for (size_t i : wanted)
-        if (owner[i] == cluster::rank()) own.push_back(i);
     if (cluster::distributed()) {
-        // Every rank's rows and tallies on every rank, as one process makes them.
-        cluster::Packer tallies;
-        tallies.put(std::array<uint64_t, 7>{pairsHidden, pairsProved, uint64_t(int64_t(analyticNanos)), hidden, inGaps,
-                                            firstRays, rowsCast});
-        const std::vector<std::string> all = cluster::allGather(packRowsOf(own) + tallies.bytes);
+        // The tallies for the log, every rank's.
+        std::vector<std::array<uint64_t, 7>> tally(size_t(cluster::size()));
+        tally[size_t(cluster::rank())] = {pairsHidden, pairsProved, uint64_t(int64_t(analyticNanos)), hidden, inGaps,
+                                          firstRays,   rowsCast};
+        cluster::shareValues(tally);
         for (int r = 0; r < cluster::size(); ++r) {
             if (r == cluster::rank()) continue;
-            // The rows, then the tallies (their last 56 bytes).
-            const size_t tail = sizeof(std::array<uint64_t, 7>);
-            PENUMBRA_CHECK(all[size_t(r)].size() >= tail);
-            unpackRows(all[size_t(r)].substr(0, all[size_t(r)].size() - tail), done);
-            std::array<uint64_t, 7> tally{};
-            std::memcpy(tally.data(), all[size_t(r)].data() + all[size_t(r)].size() - tail, tail);
-            pairsHidden += tally[0], pairsProved += tally[1], analyticNanos += int64_t(tally[2]);
-            hidden += size_t(tally[3]), inGaps += size_t(tally[4]), firstRays += tally[5], rowsCast += size_t(tally[6]);
+            const auto& t = tally[size_t(r)];
+            pairsHidden += t[0], pairsProved += t[1], analyticNanos += int64_t(t[2]);
+            hidden += size_t(t[3]), inGaps += size_t(t[4]), firstRays += t[5], rowsCast += size_t(t[6]);
         }
     }
     // The pass done: all its rows into the checkpoint (a stage boundary).
