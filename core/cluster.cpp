@@ -3,10 +3,12 @@
 #include <mpi.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <thread>
 
 #include "core/error.h"
@@ -14,9 +16,9 @@
 namespace penumbra::cluster {
 namespace {
 
-bool g_started = false;
-bool g_alone = false;
-bool g_joined = false;  // start() is done  // an Alone lives: this rank works by itself
+bool g_started = false;  // MPI initialised (mpirun started this process)
+bool g_alone = false;    // an Alone lives: this rank works by itself
+bool g_joined = false;   // start() is done
 int g_rank = 0, g_size = 1;
 uint64_t g_sent = 0;
 std::vector<std::string> g_hosts;  // per rank (started), else this host alone
@@ -40,6 +42,10 @@ int envInt(const char* name, int otherwise) {
     const char* v = std::getenv(name);
     return v && *v ? std::atoi(v) : otherwise;
 }
+
+// The most bytes one MPI call moves (its counts are ints): 1 GiB; tests make it small
+// (PENUMBRA_TEST_EXCHANGE_BYTES) so that every exchange goes in many rounds.
+long long roundBytes() { return std::max(1, envInt("PENUMBRA_TEST_EXCHANGE_BYTES", 1 << 30)); }
 
 }  // namespace
 
@@ -71,6 +77,7 @@ int size() { return g_alone ? 1 : g_size; }
 
 Alone::Alone() : was_(g_alone) { g_alone = true; }
 Alone::~Alone() { g_alone = was_; }
+
 const std::string& host() {
     if (g_hosts.empty()) g_hosts = {thisHost()};
     return g_hosts.at(size_t(g_rank));
@@ -95,8 +102,9 @@ std::vector<std::string> allGather(const std::string& mine) {
     std::vector<long long> lengths(static_cast<size_t>(n), 0);
     check(MPI_Allgather(&length, 1, MPI_LONG_LONG, lengths.data(), 1, MPI_LONG_LONG, MPI_COMM_WORLD),
           "exchanging sizes (MPI_Allgather)");
-    // Counts and offsets are ints in MPI's C API: pieces over 1 GiB go in several rounds.
-    constexpr long long kStep = 1 << 30;
+    // Counts and offsets are ints in MPI's C API: each round gathers at most 1 GiB from all ranks
+    // together, 1 GiB / ranks from each.
+    const long long kStep = std::max(1LL, roundBytes() / n);
     std::vector<std::string> all(static_cast<size_t>(n));
     for (int r = 0; r < n; ++r) all[size_t(r)].resize(size_t(lengths[size_t(r)]));
     for (long long done = 0;; done += kStep) {
@@ -126,7 +134,7 @@ std::string broadcast(const std::string& fromLeader) {
     long long length = static_cast<long long>(fromLeader.size());
     check(MPI_Bcast(&length, 1, MPI_LONG_LONG, 0, MPI_COMM_WORLD), "broadcasting a size (MPI_Bcast)");
     std::string bytes = g_rank == 0 ? fromLeader : std::string(size_t(length), '\0');
-    constexpr long long kStep = 1 << 30;
+    const long long kStep = roundBytes();
     for (long long done = 0; done < length; done += kStep) {
         const int count = int(std::min(kStep, length - done));
         check(MPI_Bcast(bytes.data() + done, count, MPI_BYTE, 0, MPI_COMM_WORLD), "broadcasting (MPI_Bcast)");
