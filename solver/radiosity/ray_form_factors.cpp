@@ -28,13 +28,13 @@ namespace {
 const Counter g_castRays("form_factors.cast_rays", "rays cast for ray-cast form factors (--form-factors rays)");
 const Counter g_gapRays("form_factors.gap_rays",
                         "of form_factors.cast_rays, those along a patch's normal asking whether an origin is in a gap");
-// Casts the `wanted` rows by castRows(list), and returns which rank cast each row (-1: not wanted).
-// Alone, every row here. Under mpirun the rows go by measured cost, in blocks of kRowBlock neighbours
-// (which cost alike: a room's floor beside its lamp): every kProbeStride-th block is cast first, dealt
-// out in turn, and timed (`rowSeconds`, filled by castRows); every other block is expected to cost
-// what the probe block before it did, and goes to the rank with the least work so far, the costliest
-// first (Graham's longest-processing-time rule). Every rank makes the same choice from the same
-// exchanged times; which rank casts a row changes nothing in it.
+// Casts the `wanted` rows (castFor, below), here alone or shared among the ranks. Under mpirun the
+// rows go by measured cost, in blocks of kRowBlock neighbours (which cost alike: a room's floor beside
+// its lamp): every kProbeStride-th block is cast first, dealt out in turn, and timed (`rowSeconds`,
+// filled by the casting); every other block is expected to cost what the probe block before it did,
+// and goes to the rank with the least work so far, the costliest first (Graham's
+// longest-processing-time rule). Every rank makes the same choice from the same exchanged times;
+// which rank casts a row changes nothing in it.
 constexpr size_t kRowBlock = 16, kProbeStride = 16;
 // Alone, the rows go in segments: castFor(rows, seconds) casts them for at most that long and returns
 // those it left, which go first in the next; castSoFar(rows done) after each (for the checkpoint).
@@ -45,11 +45,9 @@ constexpr size_t kRowBlock = 16, kProbeStride = 16;
 // takes them when due) and says whether any rank has rows left: so a job killed mid-pass loses at
 // most a round and the wait for a save.
 constexpr double kSegmentSeconds = 5, kRoundSeconds = 10;
-template <typename CastRows, typename CastFor, typename CastSoFar, typename Exchange>
-std::vector<int> castShared(const std::vector<size_t>& wanted, size_t n, const std::vector<float>& rowSeconds,
-                            const CastRows& castRows, const CastFor& castFor, const CastSoFar& castSoFar,
-                            const Exchange& exchange) {
-    std::vector<int> owner(n, -1);
+template <typename CastFor, typename CastSoFar, typename Exchange>
+void castShared(const std::vector<size_t>& wanted, size_t n, const std::vector<float>& rowSeconds,
+                const CastFor& castFor, const CastSoFar& castSoFar, const Exchange& exchange) {
     if (!cluster::distributed()) {
         const char* fixed = std::getenv("PENUMBRA_TEST_CHECKPOINT_ROWS");
         size_t segment = fixed ? size_t(std::max(1, std::atoi(fixed))) : 256;
@@ -66,12 +64,11 @@ std::vector<int> castShared(const std::vector<size_t>& wanted, size_t n, const s
             if (!fixed)
                 segment = size_t(std::clamp(std::min(rate * kSegmentSeconds, 2.0 * double(list.size())), 64.0, 1e6));
         }
-        for (size_t i : wanted) owner[i] = 0;
-        return owner;
+        return;
     }
     const int ranks = cluster::size(), me = cluster::rank();
     const size_t blocks = (n + kRowBlock - 1) / kRowBlock;
-    (void)castRows, (void)castSoFar;
+    (void)castSoFar;
     const auto inRounds = [&](std::vector<size_t> rows) {
         for (;;) {
             std::vector<size_t> left = castFor(rows, kRoundSeconds), now;
@@ -91,9 +88,7 @@ std::vector<int> castShared(const std::vector<size_t>& wanted, size_t n, const s
     std::vector<size_t> probes, mine;
     for (size_t b = 0; b < blocks; b += kProbeStride) {
         probes.push_back(b);
-        const int r = int((b / kProbeStride) % size_t(ranks));
-        for (size_t i = b * kRowBlock; i < std::min(n, (b + 1) * kRowBlock); ++i) owner[i] = r;
-        if (r == me) mine.push_back(b);
+        if (int((b / kProbeStride) % size_t(ranks)) == me) mine.push_back(b);
     }
     auto t0 = std::chrono::steady_clock::now();
     inRounds(rowsOf(mine));
@@ -129,7 +124,6 @@ std::vector<int> castShared(const std::vector<size_t>& wanted, size_t n, const s
     for (size_t b : rest) {
         const int r = int(std::min_element(load.begin(), load.end()) - load.begin());
         load[size_t(r)] += expected(b);
-        for (size_t i = b * kRowBlock; i < std::min(n, (b + 1) * kRowBlock); ++i) owner[i] = r;
         if (r == me) mine.push_back(b);
     }
     auto t2 = std::chrono::steady_clock::now();
@@ -145,9 +139,6 @@ std::vector<int> castShared(const std::vector<size_t>& wanted, size_t n, const s
         line += cat(r ? "; " : "", "rank ", r, " ", spent[size_t(r)][0] + spent[size_t(r)][1], " s (expected ",
                     spent[size_t(r)][2], ")");
     logInfo("form factors (rays) under mpirun: ", wanted.size(), " rows shared by measured cost: ", line);
-    for (size_t i = 0; i < n; ++i)
-        if (!std::binary_search(wanted.begin(), wanted.end(), i)) owner[i] = -1;
-    return owner;
 }
 
 // How far ray origins are lifted off their patch along its normal: a millionth of the scene's size.
@@ -897,7 +888,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
         }
         return any;
     };
-    castShared(wanted, n, rowSeconds, castRows, castFor, castSoFar, exchange);
+    castShared(wanted, n, rowSeconds, castFor, castSoFar, exchange);
     progress.done();
     if (cluster::distributed()) {
         // The tallies for the log, every rank's.
