@@ -12,13 +12,16 @@
 #include <thread>
 
 #include "core/error.h"
+#include "core/parallel.h"
 
 namespace penumbra::cluster {
 namespace {
 
-bool g_started = false;  // MPI initialised (mpirun started this process)
-bool g_alone = false;    // an Alone lives: this rank works by itself
-bool g_joined = false;   // start() is done
+bool g_started = false;    // MPI initialised (mpirun started this process)
+bool g_alone = false;      // an Alone lives: this rank works by itself
+bool g_joined = false;     // start() is done
+bool g_anyThread = false;  // any thread may call MPI, one at a time (MPI_THREAD_SERIALIZED)
+int g_queues = 0;          // work queues made so far: each one's messages have tags of their own
 int g_rank = 0, g_size = 1;
 uint64_t g_sent = 0;
 std::vector<std::string> g_hosts;  // per rank (started), else this host alone
@@ -52,12 +55,14 @@ long long roundBytes() { return std::max(1, envInt("PENUMBRA_TEST_EXCHANGE_BYTES
 void start(int* argc, char*** argv) {
     if (g_started || !std::getenv("OMPI_COMM_WORLD_SIZE")) return;
     int provided = 0;
-    // Only the main thread calls MPI; the threads of each rank's parallel loops never do.
-    if (MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) {
+    // The exchanges are the main thread's; a work queue's requests and answers come from whichever
+    // thread takes the next item, one at a time under the queue's lock.
+    if (MPI_Init_thread(argc, argv, MPI_THREAD_SERIALIZED, &provided) != MPI_SUCCESS) {
         std::fprintf(stderr, "penumbra: error: mpirun started this process, but it could not join the job\n");
         std::exit(1);
     }
     g_started = true;
+    g_anyThread = provided >= MPI_THREAD_SERIALIZED;
     MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN);
     MPI_Comm_rank(MPI_COMM_WORLD, &g_rank);
     MPI_Comm_size(MPI_COMM_WORLD, &g_size);
@@ -160,6 +165,134 @@ void barrier() {
 }
 
 uint64_t bytesSent() { return g_sent; }
+
+namespace {
+// Waits for a request to complete, asleep between tests: a rank waiting for an answer leaves the
+// core to the threads still working.
+void await(MPI_Request& request, const char* what) {
+    for (int spins = 0;; ++spins) {
+        int done = 0;
+        check(MPI_Test(&request, &done, MPI_STATUS_IGNORE), what);
+        if (done) return;
+        if (spins < 64)
+            std::this_thread::yield();
+        else
+            std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+}
+}  // namespace
+
+// Without MPI_THREAD_SERIALIZED (an MPI built without it) or alone, nothing is asked of anyone: each
+// rank takes the items dealt to it in turn (owns), from a shared counter over them.
+WorkQueue::WorkQueue(int64_t count, std::function<void(int64_t)> finished)
+    : count_(count), finished_(std::move(finished)), tag_(2 * (g_queues++ % 16000) + 1) {}
+
+WorkQueue::~WorkQueue() = default;
+
+int64_t WorkQueue::next() {
+    // Tests: PENUMBRA_TEST_SLOW_RANK=r makes rank r take 20 ms more per item, as a slower or busier
+    // host would (tests/test_cluster.cpp).
+    static const int slow = envInt("PENUMBRA_TEST_SLOW_RANK", -1);
+    if (slow == g_rank && distributed()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    // PENUMBRA_DEAL_IN_TURN=1: items dealt in turn, as before the queue (to measure the two).
+    static const bool inTurn = envInt("PENUMBRA_DEAL_IN_TURN", 0) == 1;
+    const bool asking = distributed() && g_anyThread && !inTurn;
+    if (!asking) {
+        // Items r, r + size, ...: the k-th of this rank's is item rank + k size.
+        const int64_t k = next_.fetch_add(1), item = rank() + k * size();
+        if (item >= count_) return -1;
+        std::lock_guard<std::mutex> lock(mutex_);
+        taken_.push_back(item);
+        return item;
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (leader()) {
+        serve();
+        const int64_t item = next_.fetch_add(1);
+        if (item >= count_) return -1;
+        taken_.push_back(item);
+        return item;
+    }
+    if (runLeft_ == 0 && !exhausted_) {
+        int64_t report = doneHere_.exchange(0), run[2] = {0, 0};
+        MPI_Request request;
+        check(MPI_Irecv(run, 2, MPI_INT64_T, 0, tag_ + 1, MPI_COMM_WORLD, &request), "asking for work (MPI_Irecv)");
+        check(MPI_Send(&report, 1, MPI_INT64_T, 0, tag_, MPI_COMM_WORLD), "asking for work (MPI_Send)");
+        g_sent += sizeof report;
+        await(request, "asking for work (MPI_Test)");
+        ++requests_;
+        runFirst_ = run[0], runLeft_ = run[1];
+        exhausted_ = runLeft_ == 0;
+    }
+    if (runLeft_ == 0) return -1;
+    --runLeft_;
+    taken_.push_back(runFirst_++);
+    return taken_.back();
+}
+
+void WorkQueue::serve() {
+    for (;;) {
+        int waiting = 0;
+        MPI_Status status;
+        check(MPI_Iprobe(MPI_ANY_SOURCE, tag_, MPI_COMM_WORLD, &waiting, &status), "handing out work (MPI_Iprobe)");
+        if (!waiting) return;
+        int64_t report = 0;
+        check(MPI_Recv(&report, 1, MPI_INT64_T, status.MPI_SOURCE, tag_, MPI_COMM_WORLD, MPI_STATUS_IGNORE),
+              "handing out work (MPI_Recv)");
+        if (finished_ && report > 0) finished_(report);
+        const int64_t left = std::max<int64_t>(0, count_ - next_.load());
+        const int64_t want = std::max<int64_t>(1, left / (4 * int64_t(size())));
+        const int64_t first = next_.fetch_add(want);
+        int64_t run[2] = {first, std::clamp<int64_t>(count_ - first, 0, want)};
+        told_ += run[1] == 0;
+        ++requests_;
+        check(MPI_Send(run, 2, MPI_INT64_T, status.MPI_SOURCE, tag_ + 1, MPI_COMM_WORLD),
+              "handing out work (MPI_Send)");
+        g_sent += sizeof run;
+    }
+}
+
+void WorkQueue::done() {
+    if (leader()) {
+        if (finished_) finished_(1);
+    } else {
+        ++doneHere_;
+    }
+}
+
+void WorkQueue::finish() {
+    if (!distributed() || !g_anyThread || !leader() || envInt("PENUMBRA_DEAL_IN_TURN", 0) == 1) return;
+    for (;;) {
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            serve();
+            if (told_ == size() - 1) return;
+        }
+        std::this_thread::sleep_for(std::chrono::microseconds(500));
+    }
+}
+
+std::vector<int64_t> WorkQueue::taken() const {
+    std::vector<int64_t> items = taken_;
+    std::sort(items.begin(), items.end());
+    return items;
+}
+
+std::vector<int64_t> forEachQueued(int64_t count, const std::function<void(int64_t)>& body,
+                                   const std::function<void(int64_t)>& finished, const std::function<void()>& prepare) {
+    WorkQueue queue(count, finished);
+    // One loop per thread, each taking items until none are left.
+    parallelFor(threadCount(), [&](int64_t t0, int64_t t1) {
+        if (prepare) prepare();
+        for (int64_t t = t0; t < t1; ++t)
+            for (int64_t item; (item = queue.next()) >= 0;) {
+                body(item);
+                queue.done();
+            }
+    });
+    queue.finish();
+    return queue.taken();
+}
 
 void Unpacker::take(void* to, size_t count) {
     // Another rank of the same program packed these bytes: a short read is this program's fault.

@@ -9,8 +9,12 @@
 // and writes the outputs; the others say only their errors.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <cstring>
+#include <functional>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -54,6 +58,53 @@ private:
 
 // Whether this rank computes item k of a list dealt out in turn (k % size == rank).
 inline bool owns(int64_t k) { return k % size() == rank(); }
+
+// Items [0, count) handed out as they are asked for, to the threads of every rank (a tile queue: a
+// rank on a faster or less busy host takes more). Rank 0 keeps the queue, its own threads taking
+// one item at a time; another rank asks it for a run at a time, a quarter of what is left per rank
+// (guided self-scheduling: long runs first, single items at the end), and says with each request
+// how many items it finished, so that rank 0's one progress bar counts the whole job's. Rank 0's
+// threads answer requests as they take their items, and afterwards finish() until every rank has
+// been told that none are left. Built and finished by every rank together; alone, a shared counter.
+class WorkQueue {
+public:
+    // `finished(k)`: on rank 0, k more items are done somewhere (the progress bar's update).
+    explicit WorkQueue(int64_t count, std::function<void(int64_t)> finished = {});
+    ~WorkQueue();
+    WorkQueue(const WorkQueue&) = delete;
+    WorkQueue& operator=(const WorkQueue&) = delete;
+
+    // The next item for the calling thread (any of this rank's), or -1 when none are left.
+    int64_t next();
+    // The calling thread has finished an item it took.
+    void done();
+    // Once this rank's threads have had their -1: rank 0 answers the others until each has had its.
+    void finish();
+    // The items this rank took, ascending.
+    std::vector<int64_t> taken() const;
+    // Runs of items this rank asked for and received (rank 0: requests it answered).
+    int64_t requests() const { return requests_; }
+
+private:
+    void serve();  // rank 0: answers the requests waiting
+    int64_t count_;
+    std::function<void(int64_t)> finished_;
+    int tag_;
+    std::atomic<int64_t> next_{0};        // rank 0 (or alone): the first item not handed out
+    std::atomic<int64_t> doneHere_{0};    // other ranks: finished, not yet reported
+    std::mutex mutex_;                    // MPI calls, the run and the items taken
+    int64_t runFirst_ = 0, runLeft_ = 0;  // other ranks: the run received, not yet taken
+    bool exhausted_ = false;              // other ranks: told that none are left
+    int told_ = 0;                        // rank 0: ranks told that none are left
+    int64_t requests_ = 0;
+    std::vector<int64_t> taken_;
+};
+
+// Calls body(item) for every item of a WorkQueue of `count`, on this rank's threads (each thread
+// first calls `prepare`, if given); returns the items this rank did, ascending.
+std::vector<int64_t> forEachQueued(int64_t count, const std::function<void(int64_t)>& body,
+                                   const std::function<void(int64_t)>& finished = {},
+                                   const std::function<void()>& prepare = {});
 
 // Every rank's bytes, in rank order, on every rank.
 std::vector<std::string> allGather(const std::string& mine);

@@ -2,10 +2,12 @@
 
 #include <cmath>
 #include <cstring>
+#include <functional>
 
 #include "core/cluster.h"
 #include "core/counters.h"
 #include "core/error.h"
+#include "core/log.h"
 #include "core/parallel.h"
 #include "core/progress.h"
 #include "core/rng.h"
@@ -47,42 +49,64 @@ float edgeContrast(const std::vector<float>& contrast, int w, int h, int x, int6
     return most;
 }
 
-// Under mpirun each rank renders bands of kBand rows dealt out in turn (interleaved, so that each
-// gets its share of the bright and the costly parts of the image), then the ranks exchange them.
+// The image is rendered in bands of kBand rows, handed out to the threads of every rank by a work
+// queue (cluster::WorkQueue: under mpirun a rank on a faster or less busy host takes more bands),
+// then the ranks exchange them.
 constexpr int64_t kBand = 4;
 
-bool ownsRow(int64_t y) { return cluster::owns(y / kBand); }
+int64_t bandsOf(int height) { return (height + kBand - 1) / kBand; }
 
-// The rows this rank renders, ascending (all of them alone).
-std::vector<int64_t> ownRows(int height) {
-    std::vector<int64_t> rows;
-    for (int64_t y = 0; y < height; ++y)
-        if (ownsRow(y)) rows.push_back(y);
-    return rows;
+// Calls row(y) for every row of every band this rank takes; returns those bands.
+std::vector<int64_t> renderBands(int height, Progress& progress, const std::function<void(int64_t)>& row) {
+    return cluster::forEachQueued(
+        bandsOf(height),
+        [&](int64_t band) {
+            for (int64_t y = band * kBand; y < std::min<int64_t>(height, (band + 1) * kBand); ++y) row(y);
+        },
+        [&](int64_t bands) { progress.update(bands); }, prepareTracingThread);
 }
 
-// Every rank's rows of `image` (and of the per-pixel `extra`, if not empty) on every rank.
-void shareRows(Image& image, std::vector<float>& extra) {
+// Every rank's bands of `image` (and of the per-pixel `extra`, if not empty) on every rank; `mine`
+// are the bands this rank rendered.
+void shareBands(Image& image, std::vector<float>& extra, const std::vector<int64_t>& mine) {
     if (!cluster::distributed()) return;
-    const size_t w = size_t(image.width), rowFloats = 3 * w + (extra.empty() ? 0 : w);
-    std::string mine;
-    for (int64_t y : ownRows(image.height)) {
-        mine.append(reinterpret_cast<const char*>(image.rgb.data() + 3 * w * size_t(y)), 3 * w * sizeof(float));
-        if (!extra.empty()) mine.append(reinterpret_cast<const char*>(extra.data() + w * size_t(y)), w * sizeof(float));
+    const size_t w = size_t(image.width);
+    const auto rowsOf = [&](int64_t band) {
+        return std::pair<size_t, size_t>(size_t(band * kBand),
+                                         size_t(std::min<int64_t>(image.height, (band + 1) * kBand)));
+    };
+    cluster::Packer packed;
+    packed.put(mine);
+    for (int64_t band : mine) {
+        const auto [y0, y1] = rowsOf(band);
+        packed.put(std::vector<float>(image.rgb.begin() + long(3 * w * y0), image.rgb.begin() + long(3 * w * y1)));
+        if (!extra.empty()) packed.put(std::vector<float>(extra.begin() + long(w * y0), extra.begin() + long(w * y1)));
     }
-    const std::vector<std::string> all = cluster::allGather(mine);
-    std::vector<size_t> at(all.size(), 0);
-    for (int64_t y = 0; y < image.height; ++y) {
-        const size_t r = size_t((y / kBand) % cluster::size());
-        if (int(r) == cluster::rank()) continue;
-        PENUMBRA_CHECK(at[r] + rowFloats * sizeof(float) <= all[r].size());
-        std::memcpy(image.rgb.data() + 3 * w * size_t(y), all[r].data() + at[r], 3 * w * sizeof(float));
-        at[r] += 3 * w * sizeof(float);
-        if (!extra.empty()) {
-            std::memcpy(extra.data() + w * size_t(y), all[r].data() + at[r], w * sizeof(float));
-            at[r] += w * sizeof(float);
+    const std::vector<std::string> all = cluster::allGather(packed.bytes);
+    std::string shares;
+    for (int r = 0; r < cluster::size(); ++r) {
+        cluster::Unpacker from(all[size_t(r)]);
+        std::vector<int64_t> bands;
+        from.get(bands);
+        shares += cat(r > 0 ? ", " : "", bands.size());
+        if (r == cluster::rank()) continue;
+        std::vector<float> values;
+        for (int64_t band : bands) {
+            PENUMBRA_CHECK(band >= 0 && band < bandsOf(image.height));
+            const auto [y0, y1] = rowsOf(band);
+            from.get(values);
+            PENUMBRA_CHECK(values.size() == 3 * w * (y1 - y0));
+            std::copy(values.begin(), values.end(), image.rgb.begin() + long(3 * w * y0));
+            if (!extra.empty()) {
+                from.get(values);
+                PENUMBRA_CHECK(values.size() == w * (y1 - y0));
+                std::copy(values.begin(), values.end(), extra.begin() + long(w * y0));
+            }
         }
+        PENUMBRA_CHECK(from.done());
     }
+    logDebug("bands of ", kBand, " rows rendered per rank: ", shares, " (", all[size_t(cluster::rank())].size(),
+             " bytes from this rank)");
 }
 
 }  // namespace
@@ -92,29 +116,23 @@ Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, con
     const PinholeCamera cam(camera);
     Image image(camera.width, camera.height);
     const int side = stratumSide(samplesPerPixel);
-    const std::vector<int64_t> rows = ownRows(camera.height);
-    Progress progress(title, int64_t(rows.size()));
-    parallelFor(int64_t(rows.size()), [&](int64_t r0, int64_t r1) {
-        prepareTracingThread();
-        for (int64_t r = r0; r < r1; ++r) {
-            const int64_t y = rows[size_t(r)];
-            for (int x = 0; x < camera.width; ++x) {
-                Rng rng = pairRng(seed, Stream::Pixels, uint64_t(y), uint64_t(x));
-                Rgb sum = Rgb::Zero();
-                for (int s = 0; s < side * side; ++s) {
-                    const double px = x + ((s % side) + rng.uniform()) / side;
-                    const double py = double(y) + ((s / side) + rng.uniform()) / side;
-                    sum += radiance(cam.origin(), cam.direction(px, py), rng);
-                }
-                image.set(x, int(y), sum / (side * side));
+    Progress progress(title, bandsOf(camera.height));
+    const std::vector<int64_t> mine = renderBands(camera.height, progress, [&](int64_t y) {
+        for (int x = 0; x < camera.width; ++x) {
+            Rng rng = pairRng(seed, Stream::Pixels, uint64_t(y), uint64_t(x));
+            Rgb sum = Rgb::Zero();
+            for (int s = 0; s < side * side; ++s) {
+                const double px = x + ((s % side) + rng.uniform()) / side;
+                const double py = double(y) + ((s / side) + rng.uniform()) / side;
+                sum += radiance(cam.origin(), cam.direction(px, py), rng);
             }
-            progress.update();
+            image.set(x, int(y), sum / (side * side));
         }
-        g_cameraSamples.add(uint64_t(camera.width) * uint64_t(side * side) * uint64_t(r1 - r0));
+        g_cameraSamples.add(uint64_t(camera.width) * uint64_t(side * side));
     });
     progress.done();
     std::vector<float> none;
-    shareRows(image, none);
+    shareBands(image, none, mine);
     return image;
 }
 
@@ -158,25 +176,19 @@ Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t se
         return p;
     };
     std::vector<float> contrast(edges ? size_t(w) * size_t(h) : 0, 0.0f);
-    const std::vector<int64_t> rows = ownRows(h);
-    const int64_t own = int64_t(rows.size());
-    Progress progress(title, edges ? 2 * own : own);
-    parallelFor(own, [&](int64_t r0, int64_t r1) {
-        prepareTracingThread();
-        for (int64_t r = r0; r < r1; ++r) {
-            const int64_t y = rows[size_t(r)];
-            for (int x = 0; x < w; ++x) {
-                PixelSampler sampler(mixSeed(pixels, uint64_t(y >> kTileBits), uint64_t(x >> kTileBits)));
-                const PixelSum p = sample(sampler, x, y, mortonRank(uint32_t(x), uint32_t(y)) * stride, spp);
-                if (edges) contrast[size_t(y) * size_t(w) + size_t(x)] = float((p.high - p.low) * spp / p.sum.sum());
-                image.set(x, int(y), p.sum / spp);
-            }
-            g_cameraSamples.add(uint64_t(w) * uint64_t(spp));
-            progress.update();
+    const int64_t bands = bandsOf(h);
+    Progress progress(title, edges ? 2 * bands : bands);
+    std::vector<int64_t> mine = renderBands(h, progress, [&](int64_t y) {
+        for (int x = 0; x < w; ++x) {
+            PixelSampler sampler(mixSeed(pixels, uint64_t(y >> kTileBits), uint64_t(x >> kTileBits)));
+            const PixelSum p = sample(sampler, x, y, mortonRank(uint32_t(x), uint32_t(y)) * stride, spp);
+            if (edges) contrast[size_t(y) * size_t(w) + size_t(x)] = float((p.high - p.low) * spp / p.sum.sum());
+            image.set(x, int(y), p.sum / spp);
         }
+        g_cameraSamples.add(uint64_t(w) * uint64_t(spp));
     });
     // The edge pass reads the neighbours' values and spreads, which other ranks may have made.
-    shareRows(image, contrast);
+    shareBands(image, contrast, mine);
     if (edges && spp == 1) {
         // One sample has no spread: a pixel's contrast is then that of its and its eight neighbours'
         // values (a lamp's edge against the ceiling beside it).
@@ -199,28 +211,23 @@ Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t se
         // 0.93%, the Cornell box 0.79% against 0.80%), from sets of their own.
         const int again = 4 * int(stride), lamp = std::max(again, 64);
         const uint64_t edgeSeed = mixSeed(seed, uint64_t(Stream::EdgePixels));
-        parallelFor(own, [&](int64_t r0, int64_t r1) {
-            prepareTracingThread();
+        mine = renderBands(h, progress, [&](int64_t y) {
             uint64_t count = 0, samples = 0;
-            for (int64_t r = r0; r < r1; ++r) {
-                const int64_t y = rows[size_t(r)];
-                for (int x = 0; x < w; ++x) {
-                    const float most = edgeContrast(contrast, w, h, x, y);
-                    if (!(most > 1)) continue;
-                    const int more = most > kLampContrast ? lamp : again;
-                    PixelSampler sampler(mixSeed(edgeSeed, uint64_t(y), uint64_t(x)));
-                    const Rgb sum = image.at(x, int(y)) * spp + sample(sampler, x, y, 0, more).sum;
-                    image.set(x, int(y), sum / (spp + more));
-                    ++count;
-                    samples += uint64_t(more);
-                }
-                progress.update();
+            for (int x = 0; x < w; ++x) {
+                const float most = edgeContrast(contrast, w, h, x, y);
+                if (!(most > 1)) continue;
+                const int more = most > kLampContrast ? lamp : again;
+                PixelSampler sampler(mixSeed(edgeSeed, uint64_t(y), uint64_t(x)));
+                const Rgb sum = image.at(x, int(y)) * spp + sample(sampler, x, y, 0, more).sum;
+                image.set(x, int(y), sum / (spp + more));
+                ++count;
+                samples += uint64_t(more);
             }
             g_cameraSamples.add(samples);
             g_edgePixels.add(count);
         });
         std::vector<float> none;
-        shareRows(image, none);
+        shareBands(image, none, mine);
     }
     progress.done();
     return image;

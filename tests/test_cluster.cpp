@@ -76,6 +76,29 @@ TEST(Cluster, RendersUnderMpirunEqualOneProcessBitForBit) {
     }
 }
 
+// The bands of an image go to the ranks as they ask (a work queue on rank 0), not dealt in turn: a
+// rank made 20 ms slower per band takes few of them, and the image is still one process's.
+TEST(Cluster, ASlowRankTakesFewerBandsAndTheImageIsTheSame) {
+    const std::string out = test::tempDir() + "/cluster-queue";
+    fs::remove_all(out);
+    fs::create_directories(out);
+    const std::string args = sceneFile("cornell-box.json") + " --integrator path --spp 4 --resolution 64x64";
+    const CommandResult one = run(cat("render ", args, " --quiet --out ", out, "/one.exr"));
+    ASSERT_EQ(one.status, 0) << one.output;
+    const CommandResult two =
+        runRanks(2, cat("render ", args, " --verbose --out ", out, "/two.exr"), "PENUMBRA_TEST_SLOW_RANK=1");
+    ASSERT_EQ(two.status, 0) << two.output;
+    EXPECT_TRUE(bytesOf(out + "/one.exr") == bytesOf(out + "/two.exr"));
+    // 16 bands of 4 rows: dealt in turn each rank would take 8.
+    const std::string key = "bands of 4 rows rendered per rank: ";
+    const size_t at = two.output.find(key);
+    ASSERT_NE(at, std::string::npos) << two.output;
+    int first = 0, second = 0;
+    ASSERT_EQ(std::sscanf(two.output.c_str() + at + key.size(), "%d, %d", &first, &second), 2) << two.output;
+    EXPECT_EQ(first + second, 16);
+    EXPECT_LE(second, 4) << "the slow rank took " << second << " of 16 bands";
+}
+
 TEST(Cluster, SolveUnderMpirunWritesTheOneProcessSolution) {
     const std::string out = test::tempDir() + "/cluster-solve";
     fs::remove_all(out);
