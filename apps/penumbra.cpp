@@ -264,7 +264,7 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
         } else {
             checkpoint.resume(bytes);
             logInfo("--resume: carrying on from ", s.out, "/checkpoint.bin (", checkpoint.passesResumed(),
-                    " ray-cast passes saved)");
+                    " form-factor passes saved)");
         }
     }
     options.formFactors.checkpoint = &checkpoint;

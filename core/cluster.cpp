@@ -11,6 +11,7 @@
 #include <cstring>
 #include <thread>
 
+#include "core/counters.h"
 #include "core/error.h"
 #include "core/parallel.h"
 
@@ -280,6 +281,7 @@ std::vector<int64_t> WorkQueue::taken() const {
 
 std::vector<int64_t> forEachQueued(int64_t count, const std::function<void(int64_t)>& body,
                                    const std::function<void(int64_t)>& finished, const std::function<void()>& prepare) {
+    const CounterValues before = counterValues();
     WorkQueue queue(count, finished);
     // One loop per thread, each taking items until none are left.
     parallelFor(threadCount(), [&](int64_t t0, int64_t t1) {
@@ -291,7 +293,36 @@ std::vector<int64_t> forEachQueued(int64_t count, const std::function<void(int64
             }
     });
     queue.finish();
+    shareCounters(before);
     return queue.taken();
+}
+
+void shareCounters(const CounterValues& before) {
+    if (!distributed()) return;
+    Packer packed;
+    for (const auto& [name, value] : countersSince(before)) {
+        packed.put(uint64_t(name.size()));
+        packed.bytes += name;
+        packed.put(value);
+    }
+    const std::vector<std::string> all = allGather(packed.bytes);
+    for (int r = 0; r < size(); ++r) {
+        if (r == rank()) continue;
+        CounterValues theirs;
+        for (size_t at = 0; at < all[size_t(r)].size();) {
+            uint64_t length = 0, value = 0;
+            PENUMBRA_CHECK(at + sizeof length <= all[size_t(r)].size());
+            std::memcpy(&length, all[size_t(r)].data() + at, sizeof length);
+            at += sizeof length;
+            PENUMBRA_CHECK(at + length + sizeof value <= all[size_t(r)].size());
+            const std::string name = all[size_t(r)].substr(at, size_t(length));
+            at += size_t(length);
+            std::memcpy(&value, all[size_t(r)].data() + at, sizeof value);
+            at += sizeof value;
+            theirs[name] = value;
+        }
+        addCounterValues(theirs);
+    }
 }
 
 void Unpacker::take(void* to, size_t count) {

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <cstring>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -105,6 +106,12 @@ private:
 std::vector<int64_t> forEachQueued(int64_t count, const std::function<void(int64_t)>& body,
                                    const std::function<void(int64_t)>& finished = {},
                                    const std::function<void()>& prepare = {});
+
+// The end of work shared among the ranks (each doing its part, as forEachQueued and the other
+// sharing does): every rank adds the others' counts since `before` to its counters (core/counters.h),
+// so that rank 0's report counts the job's work, as one process's would. Work every rank repeats
+// (the iterations) is not shared, and each counts it once, as its own.
+void shareCounters(const std::map<std::string, uint64_t>& before);
 
 // Every rank's bytes, in rank order, on every rank.
 std::vector<std::string> allGather(const std::string& mine);

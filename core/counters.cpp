@@ -75,6 +75,19 @@ CounterValues counterValues() {
     return out;
 }
 
+void addCounterValues(const CounterValues& values) {
+    std::vector<std::pair<const Counter*, uint64_t>> adds;
+    {
+        Registry& r = registry();
+        std::lock_guard<std::mutex> lock(r.mutex);
+        for (const Counter* c : r.counters) {
+            const auto it = values.find(c->name());
+            if (it != values.end() && it->second > 0) adds.emplace_back(c, it->second);
+        }
+    }
+    for (const auto& [counter, n] : adds) counter->add(n);
+}
+
 CounterValues countersSince(const CounterValues& before) {
     CounterValues now = counterValues();
     for (auto& [name, value] : now) {

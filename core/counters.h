@@ -38,6 +38,8 @@ private:
 CounterValues counterValues();
 // What changed since `before`: every counter, its value now minus then.
 CounterValues countersSince(const CounterValues& before);
+// Adds `values` to the counters of those names (the work other ranks did, cluster.h), from this thread.
+void addCounterValues(const CounterValues& values);
 // The description registered with `name` (empty if none).
 std::string counterDescription(const std::string& name);
 

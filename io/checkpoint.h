@@ -1,4 +1,5 @@
-// A solve's checkpoint, DIR/checkpoint.bin: the rows of each ray-cast form-factor pass made so far
+// A solve's checkpoint, DIR/checkpoint.bin: the rows of each form-factor pass made so far (ray-cast
+// rows, or blocks of analytic ones)
 // (CastCheckpoint, form_factors.h), tied to what they depend on: the scene file, the solve's settings
 // and this program's build. Written atomically (a kill leaves the older file or the newer, never half
 // of one), by the leader under mpirun, at least every 30 s of casting and at each pass's end, once

@@ -183,6 +183,7 @@ PhotonStats traceCausticPhotons(const SceneTracer& tracer, const PhotonSettings&
     std::vector<Rgb> emitted(static_cast<size_t>(chunks), Rgb::Zero()), stored(emitted);
     std::vector<int64_t> count(static_cast<size_t>(chunks), 0);
     // Under mpirun each rank traces its own chunks (cluster::owns) and the callers share what they kept.
+    const CounterValues before = counterValues();
     std::vector<int64_t> own;
     for (int64_t c = 0; c < chunks; ++c)
         if (cluster::owns(c)) own.push_back(c);
@@ -229,6 +230,7 @@ PhotonStats traceCausticPhotons(const SceneTracer& tracer, const PhotonSettings&
     cluster::shareValues(emitted);
     cluster::shareValues(stored);
     cluster::shareValues(count);
+    cluster::shareCounters(before);
     for (size_t c = 0; c < emitted.size(); ++c) {
         (aimed > 0 ? stats.aimedPower : stats.emittedPower) += emitted[c];
         stats.storedPower += stored[c];

@@ -1,8 +1,12 @@
 #include "solver/radiosity/form_factors.h"
 
 #include <algorithm>
+#include <cstdlib>
+#include <cstring>
 #include <mutex>
+#include <numeric>
 
+#include "core/cluster.h"
 #include "core/counters.h"
 #include "core/error.h"
 #include "core/log.h"
@@ -212,86 +216,213 @@ Visibility visibleFraction(const PatchSet& p, const RayScene& scene, size_t a, s
     return {weightedFraction(visible, rays), rays + decided, rays};
 }
 
+namespace {
+
+// Rows i < j pair up once, row i holding its n - 1 - i pairs: blocks of consecutive rows with about
+// equal pairs, so that each is about one unit of work (the first row costs n times the last).
+// Block k is rows [start[k], start[k + 1]).
+std::vector<size_t> pairBlocks(size_t n) {
+    const size_t blocks = std::clamp<size_t>(n / 4, 1, 1024);
+    const double pairs = double(n) * double(n - 1) / 2, each = pairs / double(blocks);
+    std::vector<size_t> start{0};
+    double sum = 0;
+    for (size_t i = 0; i < n; ++i) {
+        sum += double(n - 1 - i);
+        if (sum >= each * double(start.size()) && start.size() < blocks) start.push_back(i + 1);
+    }
+    if (start.back() != n) start.push_back(n);
+    return start;
+}
+
+// Blocks of rows, as bytes: the blocks' numbers, the back transfers given, and each row i's pairs
+// F(i, j > i) and F(j > i, i). What the ranks exchange and the checkpoint keeps.
+std::string packBlocks(const FormFactorMatrix& F, const std::vector<size_t>& start, const std::vector<int64_t>& blocks,
+                       const std::vector<BackTransfer>& back) {
+    const size_t n = F.size();
+    cluster::Packer packed;
+    packed.put(blocks);
+    packed.put(back);
+    std::vector<float> row, column;
+    for (int64_t k : blocks)
+        for (size_t i = start[size_t(k)]; i < start[size_t(k) + 1]; ++i) {
+            row.assign(F.row(i) + i + 1, F.row(i) + n);
+            column.resize(n - 1 - i);
+            for (size_t j = i + 1; j < n; ++j) column[j - i - 1] = F(j, i);
+            packed.put(row);
+            packed.put(column);
+        }
+    return packed.bytes;
+}
+
+// The blocks of `bytes` into F (their back transfers appended); marks them in `done`. Throws Error
+// when the bytes do not fit these blocks (a checkpoint's are checked against the solve before).
+void unpackBlocks(FormFactorMatrix& F, const std::vector<size_t>& start, const std::string& bytes,
+                  std::vector<char>& done) {
+    const size_t n = F.size();
+    cluster::Unpacker from(bytes);
+    std::vector<int64_t> blocks;
+    std::vector<BackTransfer> back;
+    std::vector<float> row, column;
+    from.get(blocks);
+    from.get(back);
+    F.backTransfers.insert(F.backTransfers.end(), back.begin(), back.end());
+    for (int64_t k : blocks) {
+        PENUMBRA_CHECK(k >= 0 && size_t(k) + 1 < start.size());
+        for (size_t i = start[size_t(k)]; i < start[size_t(k) + 1]; ++i) {
+            from.get(row);
+            from.get(column);
+            PENUMBRA_CHECK(row.size() == n - 1 - i && column.size() == n - 1 - i);
+            for (size_t j = i + 1; j < n; ++j) F(i, j) = row[j - i - 1], F(j, i) = column[j - i - 1];
+        }
+        done[size_t(k)] = 1;
+    }
+    PENUMBRA_CHECK(from.done());
+}
+
+// A round of blocks takes about this long (by the last round's pace): the ranks exchange their rows
+// after each, and the checkpoint takes them when due (at least every 20 s).
+constexpr double kRoundSeconds = 5;
+
+}  // namespace
+
 FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& scene,
                                     const FormFactorSettings& settings) {
     Timer timer;
     const size_t n = patches.size();
     FormFactorMatrix F(n);
-    const CounterValues before = counterValues();
     std::mutex backMutex;
-    Progress progress("form factors", int64_t(n) * int64_t(n - 1) / 2);
-    parallelFor(int64_t(n), [&](int64_t begin, int64_t end) {
-        prepareTracingThread();
-        uint64_t myPairs = 0, myEvaluations = 0, myRays = 0, myPartial = 0, myOccluded = 0;
-        std::vector<BackTransfer> myBack;
-        for (int64_t ii = begin; ii < end; ++ii) {
-            const size_t i = size_t(ii);
-            for (size_t j = i + 1; j < n; ++j) {
-                const PlaneSides jSeenByI = planeSides(patches, i, j), iSeenByJ = planeSides(patches, j, i);
-                const bool jFrontOfI = jSeenByI.front, iFrontOfJ = iSeenByJ.front;
-                const bool clipped = jSeenByI.straddles() || iSeenByJ.straddles();
-                if (!jFrontOfI && !iFrontOfJ) continue;
-                ++myPairs;
-                // Which faces exchange light: a patch sends from its front when the other lies in
-                // front of it; otherwise the other's front reaches its back.
-                const int sideI = jFrontOfI ? 1 : -1, sideJ = iFrontOfJ ? 1 : -1;
-                const Visibility vis = visibleFraction(patches, scene, i, j, sideI, sideJ, clipped,
-                                                       settings.visibilityRays, settings.seed);
-                myRays += uint64_t(vis.rays);
-                if (vis.fraction == 0) {
-                    ++myOccluded;
-                    continue;
+    const CounterValues before = counterValues();
+    const std::vector<size_t> start = pairBlocks(n);
+    const int64_t blocks = int64_t(start.size()) - 1;
+    std::vector<char> done(size_t(blocks), 0);
+    // A killed solve's blocks, from its checkpoint (io/checkpoint.h).
+    CastCheckpoint* checkpoint = settings.checkpoint;
+    const int pass = checkpoint ? checkpoint->beginPass() : 0;
+    if (checkpoint && !checkpoint->savedRows(pass).empty()) {
+        unpackBlocks(F, start, checkpoint->savedRows(pass), done);
+        logInfo("form factors: ", std::count(done.begin(), done.end(), 1), " of ", blocks,
+                " blocks of rows from the checkpoint");
+    }
+    std::vector<int64_t> left;
+    for (int64_t k = 0; k < blocks; ++k)
+        if (!done[size_t(k)]) left.push_back(k);
+    Progress progress("form factors", blocks);
+    progress.update(blocks - int64_t(left.size()));
+    std::vector<BackTransfer> roundBack;
+    // Blocks from a work queue, round by round: under mpirun each rank takes them as its threads come
+    // free, and after each round the ranks exchange their rows.
+    // Tests: PENUMBRA_TEST_CHECKPOINT_ROWS=k makes every round k blocks (and saves after each).
+    const char* fixed = std::getenv("PENUMBRA_TEST_CHECKPOINT_ROWS");
+    const uint64_t fixedRound = fixed ? uint64_t(std::max(1, std::atoi(fixed))) : 0;
+    uint64_t round = fixed ? fixedRound : std::max<uint64_t>(1, left.size() / 64);
+    for (size_t at = 0; at < left.size();) {
+        const size_t take = std::min<size_t>(round, left.size() - at);
+        const Timer roundTimer;
+        roundBack.clear();
+        std::vector<int64_t> mine = cluster::forEachQueued(
+            int64_t(take),
+            [&](int64_t item) {
+                const int64_t block = left[at + size_t(item)];
+                uint64_t myPairs = 0, myEvaluations = 0, myRays = 0, myPartial = 0, myOccluded = 0;
+                std::vector<BackTransfer> myBack;
+                for (size_t i = start[size_t(block)]; i < start[size_t(block) + 1]; ++i) {
+                    for (size_t j = i + 1; j < n; ++j) {
+                        const PlaneSides jSeenByI = planeSides(patches, i, j), iSeenByJ = planeSides(patches, j, i);
+                        const bool jFrontOfI = jSeenByI.front, iFrontOfJ = iSeenByJ.front;
+                        const bool clipped = jSeenByI.straddles() || iSeenByJ.straddles();
+                        if (!jFrontOfI && !iFrontOfJ) continue;
+                        ++myPairs;
+                        // Which faces exchange light: a patch sends from its front when the other lies in
+                        // front of it; otherwise the other's front reaches its back.
+                        const int sideI = jFrontOfI ? 1 : -1, sideJ = iFrontOfJ ? 1 : -1;
+                        const Visibility vis = visibleFraction(patches, scene, i, j, sideI, sideJ, clipped,
+                                                               settings.visibilityRays, settings.seed);
+                        myRays += uint64_t(vis.rays);
+                        if (vis.fraction == 0) {
+                            ++myOccluded;
+                            continue;
+                        }
+                        if (vis.fraction < 1) ++myPartial;
+                        const CubatureSettings& cub = settings.cubature;
+                        if (jFrontOfI && iFrontOfJ) {
+                            // Front to front: integrate over the smaller patch, analytically over the larger.
+                            const bool iSmaller = patches.area[i] <= patches.area[j];
+                            const AreaFactors g =
+                                unoccludedAreaFactors(patches, iSmaller ? i : j, iSmaller ? j : i, cub, &myEvaluations);
+                            F(i, j) = float(vis.fraction * g.front / patches.area[i]);
+                            F(j, i) = float(vis.fraction * g.front / patches.area[j]);
+                            // Where one patch straddles the other's plane, part of it sees the other's back:
+                            // tested by rays of its own (a block's side is mostly seen from behind through
+                            // the block itself), and integrated only when some of them get through.
+                            auto backPart = [&](size_t from, size_t to, bool fromIsSource) {
+                                const Visibility vb =
+                                    visibleFraction(patches, scene, from, to, 1, -1, clipped, settings.visibilityRays,
+                                                    settings.seed, Stream::BackVisibility);
+                                myRays += uint64_t(vb.rays);
+                                if (vb.fraction == 0) return 0.0;
+                                return vb.fraction *
+                                       (fromIsSource
+                                            ? g.back
+                                            : unoccludedAreaFactors(patches, from, to, cub, &myEvaluations).back);
+                            };
+                            const double backIJ = iSeenByJ.straddles() ? backPart(i, j, iSmaller) : 0.0;
+                            const double backJI = jSeenByI.straddles() ? backPart(j, i, !iSmaller) : 0.0;
+                            if (backIJ > 0) myBack.push_back({int(i), int(j), backIJ});
+                            if (backJI > 0) myBack.push_back({int(j), int(i), backJI});
+                        } else if (jFrontOfI) {
+                            // All of i lies behind j's plane: i's front reaches j's back.
+                            myBack.push_back({int(i), int(j),
+                                              vis.fraction * unoccludedAreaFactor(patches, i, j, cub, &myEvaluations)});
+                        } else {
+                            myBack.push_back({int(j), int(i),
+                                              vis.fraction * unoccludedAreaFactor(patches, j, i, cub, &myEvaluations)});
+                        }
+                    }
                 }
-                if (vis.fraction < 1) ++myPartial;
-                const CubatureSettings& cub = settings.cubature;
-                if (jFrontOfI && iFrontOfJ) {
-                    // Front to front: integrate over the smaller patch, analytically over the larger.
-                    const bool iSmaller = patches.area[i] <= patches.area[j];
-                    const AreaFactors g =
-                        unoccludedAreaFactors(patches, iSmaller ? i : j, iSmaller ? j : i, cub, &myEvaluations);
-                    F(i, j) = float(vis.fraction * g.front / patches.area[i]);
-                    F(j, i) = float(vis.fraction * g.front / patches.area[j]);
-                    // Where one patch straddles the other's plane, part of it sees the other's back:
-                    // tested by rays of its own (a block's side is mostly seen from behind through
-                    // the block itself), and integrated only when some of them get through.
-                    auto backPart = [&](size_t from, size_t to, bool fromIsSource) {
-                        const Visibility vb =
-                            visibleFraction(patches, scene, from, to, 1, -1, clipped, settings.visibilityRays,
-                                            settings.seed, Stream::BackVisibility);
-                        myRays += uint64_t(vb.rays);
-                        if (vb.fraction == 0) return 0.0;
-                        return vb.fraction * (fromIsSource
-                                                  ? g.back
-                                                  : unoccludedAreaFactors(patches, from, to, cub, &myEvaluations).back);
-                    };
-                    const double backIJ = iSeenByJ.straddles() ? backPart(i, j, iSmaller) : 0.0;
-                    const double backJI = jSeenByI.straddles() ? backPart(j, i, !iSmaller) : 0.0;
-                    if (backIJ > 0) myBack.push_back({int(i), int(j), backIJ});
-                    if (backJI > 0) myBack.push_back({int(j), int(i), backJI});
-                } else if (jFrontOfI) {
-                    // All of i lies behind j's plane: i's front reaches j's back.
-                    myBack.push_back(
-                        {int(i), int(j), vis.fraction * unoccludedAreaFactor(patches, i, j, cub, &myEvaluations)});
-                } else {
-                    myBack.push_back(
-                        {int(j), int(i), vis.fraction * unoccludedAreaFactor(patches, j, i, cub, &myEvaluations)});
-                }
-            }
-            progress.update(int64_t(n - i - 1));
+                g_facingPairs.add(myPairs);
+                g_kernelEvaluations.add(myEvaluations);
+                g_visibilityRays.add(myRays);
+                g_partlyVisible.add(myPartial);
+                g_occludedPairs.add(myOccluded);
+                std::lock_guard<std::mutex> lock(backMutex);
+                roundBack.insert(roundBack.end(), myBack.begin(), myBack.end());
+            },
+            [&](int64_t finished) { progress.update(finished); }, prepareTracingThread);
+        for (int64_t& item : mine) item = left[at + size_t(item)];
+        if (cluster::distributed()) {
+            const std::vector<std::string> all = cluster::allGather(packBlocks(F, start, mine, roundBack));
+            for (int r = 0; r < cluster::size(); ++r)
+                if (r != cluster::rank()) unpackBlocks(F, start, all[size_t(r)], done);
         }
-        g_facingPairs.add(myPairs);
-        g_kernelEvaluations.add(myEvaluations);
-        g_visibilityRays.add(myRays);
-        g_partlyVisible.add(myPartial);
-        g_occludedPairs.add(myOccluded);
-        std::lock_guard<std::mutex> lock(backMutex);
-        F.backTransfers.insert(F.backTransfers.end(), myBack.begin(), myBack.end());
-    });
+        F.backTransfers.insert(F.backTransfers.end(), roundBack.begin(), roundBack.end());
+        for (int64_t k : mine) done[size_t(k)] = 1;
+        at += take;
+        // The next round at this one's pace, as the leader measured it (every rank takes the same).
+        uint64_t next = uint64_t(
+            std::clamp(double(take) / std::max(roundTimer.seconds(), 1e-3) * kRoundSeconds, 1.0, double(left.size())));
+        std::string sent(reinterpret_cast<const char*>(&next), sizeof next);
+        sent = cluster::broadcast(sent);
+        std::memcpy(&next, sent.data(), sizeof next);
+        round = fixed ? fixedRound : next;
+        if (checkpoint && cluster::leader() && at < left.size() && checkpoint->due()) {
+            std::vector<int64_t> finished;
+            for (int64_t k = 0; k < blocks; ++k)
+                if (done[size_t(k)]) finished.push_back(k);
+            checkpoint->save(pass, packBlocks(F, start, finished, F.backTransfers));
+        }
+    }
     progress.done();
-    // Thread scheduling decides the order of the merge; sort so the result is reproducible.
+    // The pass done: all its rows into the checkpoint (a stage boundary).
+    if (checkpoint && cluster::leader()) {
+        std::vector<int64_t> all(static_cast<size_t>(blocks));
+        std::iota(all.begin(), all.end(), 0);
+        checkpoint->save(pass, packBlocks(F, start, all, F.backTransfers));
+    }
+    // Thread scheduling (and the ranks) decide the order of the merge; sort so the result is reproducible.
     std::sort(F.backTransfers.begin(), F.backTransfers.end(), [](const BackTransfer& a, const BackTransfer& b) {
         return a.from != b.from ? a.from < b.from : a.to < b.to;
     });
+    // Every rank's counts (cluster::forEachQueued adds the others').
     CounterValues did = countersSince(before);
     logInfo("form factors: ", n, " patches, ", did["form_factors.facing_pairs"], " facing pairs (",
             did["form_factors.occluded_pairs"], " occluded, ", did["form_factors.partly_visible_pairs"],

@@ -18,9 +18,10 @@
 
 namespace penumbra {
 
-// Where the ray-cast form factors keep the rows they have cast, so that a killed solve carries on
-// from them (io/checkpoint.h holds the file; `solve --resume`). Each castFormFactors call of a solve
-// is one pass, numbered in order; a pass's rows are packed bytes (ray_form_factors.cpp).
+// Where the form factors keep the rows they have made, so that a killed solve carries on from them
+// (io/checkpoint.h holds the file; `solve --resume`). Each castFormFactors or computeFormFactors call
+// of a solve is one pass, numbered in order; a pass's rows are packed bytes (ray_form_factors.cpp,
+// form_factors.cpp).
 class CastCheckpoint {
 public:
     virtual ~CastCheckpoint() = default;
@@ -43,7 +44,7 @@ struct FormFactorSettings {
     // them (solver/shafts.h).
     bool clearShafts = true;
     uint64_t seed = 1;
-    CastCheckpoint* checkpoint = nullptr;  // --form-factors rays: rows kept for a resume (none: not kept)
+    CastCheckpoint* checkpoint = nullptr;  // rows kept for a resume (none: not kept)
 };
 
 struct BackTransfer {

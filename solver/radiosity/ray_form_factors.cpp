@@ -68,6 +68,7 @@ void castShared(const std::vector<size_t>& wanted, size_t n, const std::vector<f
     }
     const int ranks = cluster::size(), me = cluster::rank();
     const size_t blocks = (n + kRowBlock - 1) / kRowBlock;
+    const CounterValues before = counterValues();
     (void)castSoFar;
     const auto inRounds = [&](std::vector<size_t> rows) {
         for (;;) {
@@ -134,6 +135,7 @@ void castShared(const std::vector<size_t>& wanted, size_t n, const std::vector<f
     spent[size_t(me)] = {std::chrono::duration<double>(t1 - t0).count(), std::chrono::duration<double>(t3 - t2).count(),
                          load[size_t(me)]};
     cluster::shareValues(spent);
+    cluster::shareCounters(before);
     std::string line;
     for (int r = 0; r < ranks; ++r)
         line += cat(r ? "; " : "", "rank ", r, " ", spent[size_t(r)][0] + spent[size_t(r)][1], " s (expected ",
