@@ -20,6 +20,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "core/parallel.h"
+#include "core/progress.h"
 #include "core/timer.h"
 #include "io/atomic_file.h"
 #include "io/checkpoint.h"
@@ -47,7 +48,7 @@ namespace {
 
 struct CommonOptions {
     int threads = 0;
-    bool quiet = false, verbose = false;
+    bool quiet = false, verbose = false, progress = false;
     uint64_t seed = 1;
 };
 
@@ -206,6 +207,7 @@ void setupLogging(const CommonOptions& c) {
         threads = usable < cores ? usable : std::max(1, usable / cluster::ranksOnHost());
     }
     setThreadCount(threads);
+    setProgressForced(c.progress);
     logDebug("memory: ", allocatorName());
 }
 
@@ -215,6 +217,8 @@ void logRanks() {
     std::string ranks;
     for (int r = 0; r < cluster::size(); ++r) ranks += cat(r ? ", " : "", cluster::rankName(r));
     logInfo("mpirun: ", cluster::size(), " ranks (", ranks, "), threads per rank: ", threadCount());
+    if (!progressForced())
+        logInfo("mpirun gives the ranks a pipe for stderr, not the terminal: --progress draws rank 0's progress bars");
 }
 
 // Under mpirun, a command that one rank does (export, compare, reference): the leader runs it, the
@@ -662,6 +666,7 @@ int main(int argc, char** argv) {
     app.add_option("--threads", common.threads, "Threads (0: all cores)")->check(kThreads);
     app.add_flag("--quiet,-q", common.quiet, "Warnings and errors only");
     app.add_flag("--verbose,-v", common.verbose, "Debug output");
+    app.add_flag("--progress", common.progress, "Progress bars even when stderr is not a terminal (under mpirun)");
     app.add_option("--seed", common.seed, "Random seed (results are reproducible for a seed)");
 
     SolveCli solve;
@@ -830,6 +835,8 @@ int main(int argc, char** argv) {
         cmd->add_option("--threads", common.threads, "Threads (0: all cores)")->check(kThreads);
         cmd->add_flag("--quiet,-q", common.quiet, "Warnings and errors only");
         cmd->add_flag("--verbose,-v", common.verbose, "Debug output");
+        cmd->add_flag("--progress", common.progress,
+                      "Progress bars even when stderr is not a terminal (under mpirun: rank 0's, for the whole job)");
         cmd->add_option("--seed", common.seed, "Random seed");
     }
 

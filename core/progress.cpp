@@ -7,11 +7,17 @@
 #include "core/log.h"
 
 namespace penumbra {
+namespace {
+bool g_forced = false;
+}  // namespace
+
+void setProgressForced(bool forced) { g_forced = forced; }
+bool progressForced() { return g_forced; }
 
 Progress::Progress(std::string title, int64_t total)
     : title_(std::move(title)),
       total_(total > 0 ? total : 1),
-      enabled_(isatty(STDERR_FILENO) && logLevel() <= LogLevel::Info),
+      enabled_((g_forced || isatty(STDERR_FILENO)) && logLevel() <= LogLevel::Info),
       start_(std::chrono::steady_clock::now()),
       lastDraw_(start_) {
     if (enabled_) releaseHeldLog();  // the lines before the bar, before it

@@ -10,6 +10,10 @@
 
 namespace penumbra {
 
+// Bars drawn even when stderr is no terminal (--progress: under mpirun, whose ranks write to a pipe).
+void setProgressForced(bool forced);
+bool progressForced();
+
 class Progress {
 public:
     Progress(std::string title, int64_t total);

@@ -455,8 +455,8 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     for (size_t i = 0; i < n; ++i)
         if (raysFor.empty() || raysFor[i] > 0) wanted.push_back(i);
     std::vector<float> rowSeconds(cluster::distributed() ? n : 0, 0.0f);  // thread time of each row cast
-    Progress progress("form factors (rays)",
-                      int64_t((wanted.size() + size_t(cluster::size()) - 1) / size_t(cluster::size())));
+    // Under mpirun rank 0's bar counts every rank's rows, the others' as each round's exchange brings them.
+    Progress progress("form factors (rays)", int64_t(wanted.size()));
     std::vector<char> cast(n, 0);  // rows cast by this rank
     const std::chrono::steady_clock::time_point* segmentEnd = nullptr;
     const auto castRows = [&](const std::vector<size_t>& list) {
@@ -843,6 +843,7 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
                      wanted.end());
         logInfo("form factors (rays): ", restored.size(), " rows of this pass from the checkpoint, ", wanted.size(),
                 " to cast");
+        progress.update(int64_t(restored.size()));
     }
     // Alone, the rows cast so far go into the checkpoint every so often (CastCheckpoint::due).
     const auto castSoFar = [&](size_t upTo, const std::vector<size_t>& left) {
@@ -875,12 +876,14 @@ FormFactorMatrix castFormFactors(const PatchSet& patches, const RayScene& rays, 
     // and into the checkpoint when due; whether any rank has rows left.
     const auto exchange = [&](const std::vector<size_t>& castNow, bool more) {
         const std::vector<std::string> all = cluster::allGather(packRowsOf(castNow) + char(more ? 1 : 0));
+        const auto before = std::count(done.begin(), done.end(), 1);
         bool any = false;
         for (int r = 0; r < cluster::size(); ++r) {
             PENUMBRA_CHECK(!all[size_t(r)].empty());
             any = any || all[size_t(r)].back() != 0;
             if (r != cluster::rank()) unpackRows(all[size_t(r)].substr(0, all[size_t(r)].size() - 1), done);
         }
+        progress.update(int64_t(std::count(done.begin(), done.end(), 1) - before));
         for (size_t i : castNow) done[i] = 1;
         if (checkpoint && checkpoint->due()) {
             std::vector<size_t> list;
