@@ -12,29 +12,19 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "mesh/gltf_scene.h"
 #include "mesh/mesh_file.h"
 #include "mesh/scene.h"
+#include "mesh/scene_detail.h"
 
 namespace penumbra {
-namespace {
+namespace scene_detail {
 
-using Json = nlohmann::json;
-
-// Coordinates beyond this many metres are taken as a unit mistake, not a scene.
-constexpr double kAbsurdMetres = 1e8;
-// Radiance beyond this, W sr^-1 m^-2: the sun's is about 2e7.
-constexpr double kAbsurdRadiance = 1e20;
-
-uint64_t fnv1a(const std::string& bytes, uint64_t h = 1469598103934665603ull) {
+uint64_t fnv1a(const std::string& bytes, uint64_t h) {
     for (unsigned char c : bytes) h = (h ^ c) * 1099511628211ull;
     return h;
 }
 
-// A scene or mesh file larger than this is refused before it is read.
-constexpr uintmax_t kMaxFileBytes = uintmax_t(1) << 31;
-
-// The bytes of a regular file: a folder, a device (/dev/zero was read until memory ran out), a pipe
-// or a file past kMaxFileBytes is refused by name, and so is one that cannot be opened, with why.
 std::string readFile(const std::string& path, const std::string& what) {
     namespace fs = std::filesystem;
     std::error_code ec;
@@ -53,17 +43,75 @@ std::string readFile(const std::string& path, const std::string& what) {
     return ss.str();
 }
 
-// Context for error messages: "scene.json: objects[2] 'floor': vertices: ..."
-struct Where {
-    std::string file, path;
-    Where at(const std::string& key) const { return {file, path.empty() ? key : path + "." + key}; }
-    Where index(size_t i, const std::string& name = "") const {
-        return {file, cat(path, "[", i, "]", name.empty() ? "" : " '" + name + "'")};
+void checkCoordinate(const Vec3& p, double metres, const Where& w) {
+    if (p.cwiseAbs().maxCoeff() * metres > kAbsurdMetres) {
+        const Vec3 m = p * metres;
+        w.fail(cat("coordinate (", m.x(), ", ", m.y(), ", ", m.z(), ") m lies more than ", kAbsurdMetres,
+                   " m from the origin: check unit_scale"));
     }
-    [[noreturn]] void fail(const std::string& what) const {
-        throw Error(cat(file, ": ", path.empty() ? "" : path + ": ", what));
+}
+
+void checkQuad(const std::vector<Vec3>& v, const Where& w) {
+    const double diag = std::max((v[2] - v[0]).norm(), (v[3] - v[1]).norm());
+    const Vec3 n = (v[1] - v[0]).cross(v[2] - v[0]);
+    const Vec3 n2 = (v[2] - v[0]).cross(v[3] - v[0]);
+    if (diag == 0 || n.norm() <= 1e-12 * diag * diag || n2.norm() <= 1e-12 * diag * diag)
+        w.fail("degenerate quad: three of its vertices are collinear or coincide");
+    const double off = std::abs(n.normalized().dot(v[3] - v[0]));
+    if (off > 0.01 * diag)
+        w.fail(cat("quad is not planar: its fourth vertex lies ", 100 * off / diag,
+                   "% of the longest diagonal off the plane of the first three (at most 1%)"));
+    // Every corner must turn the same way: a bow-tie or a dart would fold its patches.
+    const Vec3 ref = n + n2;
+    for (int k = 0; k < 4; ++k) {
+        const Vec3 e0 = v[(k + 1) % 4] - v[k], e1 = v[(k + 2) % 4] - v[(k + 1) % 4];
+        if (e0.cross(e1).dot(ref) <= 0) w.fail("quad is not convex (or its vertices are not in order around it)");
     }
-};
+}
+
+void checkTriangle(const std::vector<Vec3>& v, const Where& w) {
+    const double edge = std::max({(v[1] - v[0]).norm(), (v[2] - v[1]).norm(), (v[0] - v[2]).norm()});
+    const double area2 = (v[1] - v[0]).cross(v[2] - v[0]).norm();
+    if (edge == 0 || area2 <= 1e-12 * edge * edge) w.fail("zero-area triangle: its vertices are collinear or coincide");
+}
+
+void normaliseLengths(Scene& scene, const Where& top) {
+    Eigen::AlignedBox3d box;
+    for (const SceneObject& o : scene.objects) {
+        for (const Vec3& v : o.vertices) box.extend(v);
+        for (const Vec3& v : o.mesh.vertices) box.extend(v);
+        if (o.type == ShapeType::Sphere) {
+            const double r = o.radius * o.toWorld.linear().norm();  // at least the sphere's, at most 3x
+            box.extend(o.toWorld * o.center + Vec3::Constant(r));
+            box.extend(o.toWorld * o.center - Vec3::Constant(r));
+        }
+    }
+    const double across = box.diagonal().norm(), metres = across * scene.metresPerUnit;
+    if (!(metres >= 1e-100))
+        top.fail(cat("the scene is ", metres,
+                     " m across: below 1e-100 m its areas and powers leave double "
+                     "precision; check unit_scale"));
+    if (metres >= 0x1p-10 && metres <= 0x1p20) return;
+    const double s = std::ldexp(1.0, std::ilogb(across) + 1);  // inside: [0.5, 1) units across
+    const Eigen::Affine3d shrink(Eigen::Scaling(1 / s));
+    for (SceneObject& o : scene.objects) {
+        for (Vec3& v : o.vertices) v /= s;
+        for (Vec3& v : o.mesh.vertices) v /= s;
+        o.toWorld = shrink * o.toWorld;
+    }
+    scene.metresPerUnit *= s;
+}
+
+}  // namespace scene_detail
+
+namespace {
+
+using namespace scene_detail;
+
+using Json = nlohmann::json;
+
+// Radiance beyond this, W sr^-1 m^-2: the sun's is about 2e7.
+constexpr double kAbsurdRadiance = 1e20;
 
 bool ignoredKey(const std::string& key) { return key == "comment" || (!key.empty() && key[0] == '_'); }
 
@@ -235,15 +283,6 @@ Eigen::Affine3d parseTransform(const Json& j, const Where& w) {
     return t;
 }
 
-// `p` in inside units of `metres` metres each (Scene::metresPerUnit).
-void checkCoordinate(const Vec3& p, double metres, const Where& w) {
-    if (p.cwiseAbs().maxCoeff() * metres > kAbsurdMetres) {
-        const Vec3 m = p * metres;
-        w.fail(cat("coordinate (", m.x(), ", ", m.y(), ", ", m.z(), ") m lies more than ", kAbsurdMetres,
-                   " m from the origin: check unit_scale"));
-    }
-}
-
 std::vector<Vec3> polygon(const Json& j, size_t count, const Eigen::Affine3d& toWorld, double metres, const Where& w) {
     if (!j.is_array() || j.size() != count) w.fail(cat("expected an array of ", count, " vertices [x, y, z]"));
     std::vector<Vec3> v;
@@ -252,60 +291,6 @@ std::vector<Vec3> polygon(const Json& j, size_t count, const Eigen::Affine3d& to
         checkCoordinate(v.back(), metres, w.index(k));
     }
     return v;
-}
-
-void checkQuad(const std::vector<Vec3>& v, const Where& w) {
-    const double diag = std::max((v[2] - v[0]).norm(), (v[3] - v[1]).norm());
-    const Vec3 n = (v[1] - v[0]).cross(v[2] - v[0]);
-    const Vec3 n2 = (v[2] - v[0]).cross(v[3] - v[0]);
-    if (diag == 0 || n.norm() <= 1e-12 * diag * diag || n2.norm() <= 1e-12 * diag * diag)
-        w.fail("degenerate quad: three of its vertices are collinear or coincide");
-    const double off = std::abs(n.normalized().dot(v[3] - v[0]));
-    if (off > 0.01 * diag)
-        w.fail(cat("quad is not planar: its fourth vertex lies ", 100 * off / diag,
-                   "% of the longest diagonal off the plane of the first three (at most 1%)"));
-    // Every corner must turn the same way: a bow-tie or a dart would fold its patches.
-    const Vec3 ref = n + n2;
-    for (int k = 0; k < 4; ++k) {
-        const Vec3 e0 = v[(k + 1) % 4] - v[k], e1 = v[(k + 2) % 4] - v[(k + 1) % 4];
-        if (e0.cross(e1).dot(ref) <= 0) w.fail("quad is not convex (or its vertices are not in order around it)");
-    }
-}
-
-void checkTriangle(const std::vector<Vec3>& v, const Where& w) {
-    const double edge = std::max({(v[1] - v[0]).norm(), (v[2] - v[1]).norm(), (v[0] - v[2]).norm()});
-    const double area2 = (v[1] - v[0]).cross(v[2] - v[0]).norm();
-    if (edge == 0 || area2 <= 1e-12 * edge * edge) w.fail("zero-area triangle: its vertices are collinear or coincide");
-}
-
-// Brings a scene far below a millimetre or above a thousand kilometres across to half a unit to one
-// unit across inside, by a power of two (Scene::metresPerUnit); refuses one whose areas in m^2
-// would leave double precision.
-void normaliseLengths(Scene& scene, const Where& top) {
-    Eigen::AlignedBox3d box;
-    for (const SceneObject& o : scene.objects) {
-        for (const Vec3& v : o.vertices) box.extend(v);
-        for (const Vec3& v : o.mesh.vertices) box.extend(v);
-        if (o.type == ShapeType::Sphere) {
-            const double r = o.radius * o.toWorld.linear().norm();  // at least the sphere's, at most 3x
-            box.extend(o.toWorld * o.center + Vec3::Constant(r));
-            box.extend(o.toWorld * o.center - Vec3::Constant(r));
-        }
-    }
-    const double across = box.diagonal().norm(), metres = across * scene.metresPerUnit;
-    if (!(metres >= 1e-100))
-        top.fail(cat("the scene is ", metres,
-                     " m across: below 1e-100 m its areas and powers leave double "
-                     "precision; check unit_scale"));
-    if (metres >= 0x1p-10 && metres <= 0x1p20) return;
-    const double s = std::ldexp(1.0, std::ilogb(across) + 1);  // inside: [0.5, 1) units across
-    const Eigen::Affine3d shrink(Eigen::Scaling(1 / s));
-    for (SceneObject& o : scene.objects) {
-        for (Vec3& v : o.vertices) v /= s;
-        for (Vec3& v : o.mesh.vertices) v /= s;
-        o.toWorld = shrink * o.toWorld;
-    }
-    scene.metresPerUnit *= s;
 }
 
 Camera parseCameraJson(const Json& j, const Scene& scene, const Where& w) {
@@ -370,6 +355,7 @@ Camera parseCamera(const std::string& text, const Scene& scene, const std::strin
 }
 
 Scene loadScene(const std::string& path) {
+    if (isGltfPath(path)) return loadGltfScene(path);
     const std::string text = readFile(path, "scene file");
     Json root;
     try {

@@ -1,0 +1,359 @@
+#include "mesh/gltf_scene.h"
+
+#include <tiny_gltf.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <set>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "mesh/scene_detail.h"
+
+namespace penumbra {
+namespace {
+
+using namespace scene_detail;
+
+// glTF's thresholds for our three materials (docs/import.md): metallic and smooth is a mirror,
+// transmissive is glass, anything else diffuse.
+constexpr double kMirrorMetallic = 0.5, kMirrorRoughness = 0.05, kGlassTransmission = 0.5;
+
+// Images are not decoded: textures are not used yet (named in the log). tinygltf's own decoder
+// would otherwise open every image the file names.
+bool skipImage(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int, void*) {
+    return true;
+}
+
+double extensionNumber(const tinygltf::ExtensionMap& extensions, const char* extension, const char* key,
+                       double otherwise) {
+    const auto it = extensions.find(extension);
+    if (it == extensions.end() || !it->second.IsObject() || !it->second.Has(key)) return otherwise;
+    const tinygltf::Value& v = it->second.Get(key);
+    return v.IsNumber() ? v.GetNumberAsDouble() : otherwise;
+}
+
+Rgb factor3(const std::vector<double>& v, double otherwise) {
+    return v.size() >= 3 ? Rgb(v[0], v[1], v[2]) : Rgb::Constant(otherwise);
+}
+
+// glTF material -> ours; `notes` collects what is not used, once per kind.
+Material mapMaterial(const tinygltf::Material& g, const std::string& name, const Where& w,
+                     std::set<std::string>& notes) {
+    Material m;
+    m.name = name;
+    const auto& pbr = g.pbrMetallicRoughness;
+    const Rgb base = factor3(pbr.baseColorFactor, 1.0);
+    for (int c = 0; c < 3; ++c)
+        if (!(base[c] >= 0 && base[c] <= 1))
+            w.at("pbrMetallicRoughness.baseColorFactor").fail(cat("each channel must lie in [0, 1], got ", base[c]));
+    const double transmission = extensionNumber(g.extensions, "KHR_materials_transmission", "transmissionFactor", 0);
+    if (transmission >= kGlassTransmission) {
+        m.type = MaterialType::Dielectric;
+        m.ior = extensionNumber(g.extensions, "KHR_materials_ior", "ior", 1.5);
+        if (!(m.ior > 0) || m.ior > 10)
+            w.at("KHR_materials_ior.ior").fail(cat("index of refraction must lie in (0, 10], got ", m.ior));
+        m.transmittance = base;
+        return m;
+    }
+    if (pbr.metallicFactor >= kMirrorMetallic && pbr.roughnessFactor <= kMirrorRoughness) {
+        m.type = MaterialType::Mirror;
+        m.reflectance = base;
+        return m;
+    }
+    m.type = MaterialType::Diffuse;
+    m.reflectance = base;
+    if (pbr.metallicFactor >= kMirrorMetallic)
+        notes.insert("rough metals (metallicFactor >= 0.5, roughnessFactor > 0.05) are taken as diffuse");
+    if (g.extensions.count("KHR_materials_specular") || pbr.metallicFactor > 0)
+        notes.insert("the specular layer of diffuse materials (KHR_materials_specular, metallicFactor) is left out");
+    const double strength = extensionNumber(g.extensions, "KHR_materials_emissive_strength", "emissiveStrength", 1);
+    m.emission = factor3(g.emissiveFactor, 0.0) * strength;
+    if (!(m.emission >= 0).all() || !m.emission.allFinite())
+        w.at("emissiveFactor").fail("emission must be finite and not negative");
+    if (pbr.baseColorTexture.index >= 0 || g.emissiveTexture.index >= 0)
+        notes.insert("textures are not used yet: each material takes its factors alone");
+    if (g.doubleSided) notes.insert("doubleSided: back faces stay black, as in our scene format");
+    if (g.alphaMode != "OPAQUE") notes.insert("alphaMode " + g.alphaMode + ": surfaces are taken as opaque");
+    return m;
+}
+
+// A node's local transform: its matrix, or translation x rotation x scale.
+Eigen::Affine3d localTransform(const tinygltf::Node& n) {
+    Eigen::Affine3d t = Eigen::Affine3d::Identity();
+    if (n.matrix.size() == 16) {
+        Eigen::Matrix4d m;
+        for (int c = 0; c < 4; ++c)
+            for (int r = 0; r < 4; ++r) m(r, c) = n.matrix[size_t(4 * c + r)];  // column-major
+        t.matrix() = m;
+        return t;
+    }
+    if (n.translation.size() == 3) t.translate(Vec3(n.translation[0], n.translation[1], n.translation[2]));
+    if (n.rotation.size() == 4)
+        t.rotate(Eigen::Quaterniond(n.rotation[3], n.rotation[0], n.rotation[1], n.rotation[2]).normalized());
+    if (n.scale.size() == 3) t.scale(Vec3(n.scale[0], n.scale[1], n.scale[2]));
+    return t;
+}
+
+// The floats or integers of an accessor, as doubles (positions) or indices.
+template <typename T>
+std::vector<T> readAccessor(const tinygltf::Model& model, int index, int components, const Where& w) {
+    if (index < 0 || size_t(index) >= model.accessors.size()) w.fail(cat("accessor ", index, " does not exist"));
+    const tinygltf::Accessor& a = model.accessors[size_t(index)];
+    if (a.sparse.isSparse) w.fail(cat("accessor ", index, " is sparse, which is not read"));
+    if (a.bufferView < 0 || size_t(a.bufferView) >= model.bufferViews.size())
+        w.fail(cat("accessor ", index, " has no buffer view"));
+    const tinygltf::BufferView& view = model.bufferViews[size_t(a.bufferView)];
+    if (view.buffer < 0 || size_t(view.buffer) >= model.buffers.size())
+        w.fail(cat("buffer view ", a.bufferView, " has no buffer"));
+    const std::vector<unsigned char>& data = model.buffers[size_t(view.buffer)].data;
+    const int size = tinygltf::GetComponentSizeInBytes(uint32_t(a.componentType));
+    const int stride = a.ByteStride(view);
+    if (size <= 0 || stride <= 0) w.fail(cat("accessor ", index, ": unknown component type ", a.componentType));
+    const size_t first = view.byteOffset + a.byteOffset;
+    if (a.count > 0 && first + (a.count - 1) * size_t(stride) + size_t(size * components) > data.size())
+        w.fail(cat("accessor ", index, " reaches past the end of its buffer"));
+    std::vector<T> out;
+    out.reserve(a.count * size_t(components));
+    for (size_t k = 0; k < a.count; ++k)
+        for (int c = 0; c < components; ++c) {
+            const unsigned char* p = data.data() + first + k * size_t(stride) + size_t(c * size);
+            switch (a.componentType) {
+                case TINYGLTF_COMPONENT_TYPE_FLOAT: {
+                    float f;
+                    std::memcpy(&f, p, sizeof f);
+                    out.push_back(T(f));
+                    break;
+                }
+                case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+                    out.push_back(T(*p));
+                    break;
+                case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+                    uint16_t v;
+                    std::memcpy(&v, p, sizeof v);
+                    out.push_back(T(v));
+                    break;
+                }
+                case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: {
+                    uint32_t v;
+                    std::memcpy(&v, p, sizeof v);
+                    out.push_back(T(v));
+                    break;
+                }
+                default:
+                    w.fail(cat("accessor ", index, ": component type ", a.componentType, " is not read here"));
+            }
+        }
+    return out;
+}
+
+// Two triangles that share an edge and together make a planar convex quad, as that quad's corners
+// in order (an exporter's split of a quad face); else empty.
+std::vector<Vec3> quadOf(const std::vector<Vec3>& t) {
+    if (t.size() != 6) return {};
+    for (int r = 0; r < 3; ++r) {
+        // First triangle rotated to (a, b, c); the second must hold c and a (reversed) and one more.
+        const Vec3 &a = t[size_t(r)], &b = t[size_t((r + 1) % 3)], &c = t[size_t((r + 2) % 3)];
+        for (int s = 0; s < 3; ++s) {
+            const Vec3 &p = t[size_t(3 + s)], &q = t[size_t(3 + (s + 1) % 3)], &d = t[size_t(3 + (s + 2) % 3)];
+            if (p == a && q == c) {
+                std::vector<Vec3> quad{a, b, c, d};
+                try {
+                    checkQuad(quad, Where{"", ""});
+                } catch (const Error&) {
+                    return {};
+                }
+                return quad;
+            }
+        }
+    }
+    return {};
+}
+
+}  // namespace
+
+bool isGltfPath(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    return ext == ".glb" || ext == ".gltf";
+}
+
+Scene loadGltfScene(const std::string& path) {
+    const std::string bytes = readFile(path, "glTF file");
+    const Where top{path, ""};
+    tinygltf::Model model;
+    tinygltf::TinyGLTF reader;
+    reader.SetImageLoader(skipImage, nullptr);
+    std::string err, warn;
+    const std::string base = std::filesystem::absolute(path).parent_path().string();
+    const bool binary = bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0;
+    const bool ok =
+        binary ? reader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
+                                             unsigned(bytes.size()), base)
+               : reader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), unsigned(bytes.size()), base);
+    if (!ok) top.fail(cat("not a glTF 2.0 file tinygltf can read: ", err.empty() ? warn : err));
+    if (!warn.empty()) logInfo(path, ": tinygltf: ", warn);
+    if (!model.lights.empty() ||
+        std::count(model.extensionsUsed.begin(), model.extensionsUsed.end(), "KHR_lights_punctual"))
+        top.fail(cat(model.lights.size(),
+                     " punctual light(s) (KHR_lights_punctual): a point, spot or sun light has no area to solve for; "
+                     "model each lamp as emissive geometry (a mesh whose material has an emissiveFactor)"));
+
+    Scene scene;
+    scene.path = path;
+    scene.fingerprint = fnv1a(bytes);
+    scene.fileFingerprint = scene.fingerprint;
+    for (const tinygltf::Buffer& b : model.buffers)
+        if (!b.uri.empty()) {
+            const std::string data(b.data.begin(), b.data.end());
+            scene.fingerprint = fnv1a(data, scene.fingerprint);
+            scene.fileFingerprint = scene.fingerprint;
+        }
+    std::set<std::string> notes;
+
+    // Materials as the primitives use them; -1 is glTF's default material (white, metallic and
+    // rough: here diffuse of reflectance 1).
+    std::map<int, int> materialOf;
+    std::set<std::string> materialNames;
+    const auto material = [&](int index, const Where& w) {
+        if (const auto it = materialOf.find(index); it != materialOf.end()) return it->second;
+        tinygltf::Material g;
+        std::string name = "default";
+        Where wm = w;
+        if (index >= 0) {
+            if (size_t(index) >= model.materials.size()) w.fail(cat("material ", index, " does not exist"));
+            g = model.materials[size_t(index)];
+            name = g.name.empty() ? cat("material", index) : g.name;
+            wm = top.at("materials").index(size_t(index), g.name);
+        } else {
+            g.pbrMetallicRoughness.metallicFactor = 1;
+            g.pbrMetallicRoughness.roughnessFactor = 1;
+            notes.insert("primitives without a material take glTF's default (white, reflectance 1)");
+        }
+        for (int k = 2; !materialNames.insert(name).second; ++k) name = cat(g.name, "-", k);
+        scene.materials.push_back(mapMaterial(g, name, wm, notes));
+        materialOf[index] = int(scene.materials.size()) - 1;
+        return materialOf[index];
+    };
+
+    std::set<std::string> objectNames;
+    std::vector<std::string> renamed;
+    const int sceneIndex = model.defaultScene >= 0 ? model.defaultScene : 0;
+    if (model.scenes.empty() || size_t(sceneIndex) >= model.scenes.size()) top.fail("the file holds no scene");
+    bool cameraFound = false;
+    std::set<int> visiting;
+    const std::function<void(int, const Eigen::Affine3d&)> visit = [&](int index, const Eigen::Affine3d& parent) {
+        if (index < 0 || size_t(index) >= model.nodes.size()) top.fail(cat("node ", index, " does not exist"));
+        if (!visiting.insert(index).second) top.fail(cat("node ", index, " is its own ancestor"));
+        const tinygltf::Node& node = model.nodes[size_t(index)];
+        const Where w = top.at("nodes").index(size_t(index), node.name);
+        const Eigen::Affine3d world = parent * localTransform(node);
+        if (node.skin >= 0) notes.insert("skins are not applied: meshes are taken in their bind pose");
+        if (node.camera >= 0 && !cameraFound && size_t(node.camera) < model.cameras.size()) {
+            const tinygltf::Camera& c = model.cameras[size_t(node.camera)];
+            if (c.type == "perspective") {
+                cameraFound = true;
+                Camera& cam = scene.camera;
+                cam.position = world * Vec3::Zero();
+                cam.lookAt = cam.position + (world.linear() * Vec3(0, 0, -1)).normalized();
+                cam.up = (world.linear() * Vec3(0, 1, 0)).normalized();
+                cam.fovYDeg = c.perspective.yfov * 180 / kPi;
+                if (!(cam.fovYDeg > 0 && cam.fovYDeg < 180))
+                    w.fail(cat("camera yfov ", c.perspective.yfov, " rad is not in (0, pi)"));
+                const double aspect = c.perspective.aspectRatio > 0 ? c.perspective.aspectRatio : 1.0;
+                cam.height = 512;
+                cam.width = std::clamp(int(std::lround(512 * aspect)), 1, 16384);
+                scene.hasCamera = true;
+            } else {
+                notes.insert("orthographic cameras are not used");
+            }
+        }
+        if (node.mesh >= 0) {
+            if (size_t(node.mesh) >= model.meshes.size()) w.fail(cat("mesh ", node.mesh, " does not exist"));
+            const tinygltf::Mesh& mesh = model.meshes[size_t(node.mesh)];
+            for (size_t p = 0; p < mesh.primitives.size(); ++p) {
+                const tinygltf::Primitive& prim = mesh.primitives[p];
+                const Where wp{path, cat(w.path, " mesh ", node.mesh, mesh.name.empty() ? "" : " '" + mesh.name + "'",
+                                         " primitive ", p)};
+                if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1)
+                    wp.fail(cat("primitive mode ", prim.mode,
+                                " (points, lines or strips and fans): only triangles (mode 4) are read; "
+                                "export with triangulated faces"));
+                const auto position = prim.attributes.find("POSITION");
+                if (position == prim.attributes.end()) wp.fail("no POSITION attribute");
+                const std::vector<double> xyz = readAccessor<double>(model, position->second, 3, wp);
+                const size_t vertices = xyz.size() / 3;
+                std::vector<uint32_t> indices;
+                if (prim.indices >= 0) {
+                    indices = readAccessor<uint32_t>(model, prim.indices, 1, wp);
+                } else {
+                    for (size_t k = 0; k < vertices; ++k) indices.push_back(uint32_t(k));
+                }
+                if (indices.size() % 3 != 0 || indices.empty()) wp.fail("no whole triangles");
+                PolygonSoup soup;
+                for (size_t k = 0; k < vertices; ++k) {
+                    soup.vertices.push_back(world * Vec3(xyz[3 * k], xyz[3 * k + 1], xyz[3 * k + 2]));
+                    checkCoordinate(soup.vertices.back(), 1, wp);
+                }
+                for (size_t k = 0; k < indices.size(); k += 3) {
+                    for (int c = 0; c < 3; ++c)
+                        if (indices[k + size_t(c)] >= vertices)
+                            wp.fail(cat("index ", indices[k + size_t(c)], " past its ", vertices, " vertices"));
+                    soup.faces.push_back({int(indices[k]), int(indices[k + 1]), int(indices[k + 2])});
+                }
+                // A mirrored transform turns the faces' winding: put it back, so that fronts stay fronts.
+                if (world.linear().determinant() < 0)
+                    for (auto& f : soup.faces) std::swap(f[1], f[2]);
+                SceneObject o;
+                std::string name = !node.name.empty() ? node.name : !mesh.name.empty() ? mesh.name : cat("node", index);
+                if (mesh.primitives.size() > 1) name += cat("#", p);
+                const std::string wanted = name;
+                for (int k = 2; !objectNames.insert(name).second; ++k) name = cat(wanted, "-", k);
+                if (name != wanted) renamed.push_back(cat("'", wanted, "' as '", name, "'"));
+                o.name = name;
+                o.material = material(prim.material, wp);
+                // One triangle, or two making a planar convex quad (an exporter's split of a quad
+                // face), is meshed as our triangle or quad; anything else as a mesh.
+                std::vector<Vec3> corners;
+                for (const auto& f : soup.faces)
+                    for (int v : f) corners.push_back(soup.vertices[size_t(v)]);
+                if (soup.faces.size() == 1) {
+                    o.type = ShapeType::Triangle;
+                    o.vertices = corners;
+                    checkTriangle(o.vertices, wp);
+                } else if (std::vector<Vec3> quad = quadOf(corners); !quad.empty()) {
+                    o.type = ShapeType::Quad;
+                    o.vertices = quad;
+                } else {
+                    o.type = ShapeType::Mesh;
+                    o.mesh = std::move(soup);
+                    o.file = path;
+                }
+                scene.objects.push_back(std::move(o));
+            }
+        }
+        for (int child : node.children) visit(child, world);
+        visiting.erase(index);
+    };
+    for (int root : model.scenes[size_t(sceneIndex)].nodes) visit(root, Eigen::Affine3d::Identity());
+    if (scene.objects.empty()) top.fail("the scene has no meshes");
+    if (!renamed.empty()) {
+        std::string list;
+        for (const std::string& r : renamed) list += cat(list.empty() ? "" : ", ", r);
+        logInfo(path, ": objects named alike are told apart: ", list);
+    }
+    for (const std::string& note : notes) logInfo(path, ": ", note);
+    normaliseLengths(scene, top);
+    // The camera was found in metres; the lengths may since have been scaled (Scene::metresPerUnit).
+    scene.camera.position /= scene.metresPerUnit;
+    scene.camera.lookAt /= scene.metresPerUnit;
+    if (!scene.hasEmitter())
+        logWarning(path, ": no material emits light (emissiveFactor): every radiosity will be zero (a black answer)");
+    return scene;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,20 @@
+// glTF 2.0 scenes (.glb, .gltf), read by tinygltf and mapped onto our scene (docs/import.md):
+// every node of the default scene with a mesh, its matrix or TRS chain applied, in metres; each
+// triangle primitive an object named after its node; materials by their glTF factors (a mirror, a
+// dielectric, else diffuse with its emission); the first perspective camera. What is not used is named
+// once in the log; what cannot be honoured (other primitive modes, punctual lights) is refused.
+#pragma once
+
+#include <string>
+
+#include "mesh/scene.h"
+
+namespace penumbra {
+
+// Throws Error naming the file and the node, mesh or material at fault.
+Scene loadGltfScene(const std::string& path);
+
+// Whether `path` names a glTF file (.glb or .gltf, any case).
+bool isGltfPath(const std::string& path);
+
+}  // namespace penumbra

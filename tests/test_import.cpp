@@ -1,0 +1,139 @@
+// Scenes as users have them (issue 17): glTF 2.0 written by Blender's own exporter
+// (scenes/blender/export_scene.py made the committed files) solves to the report of our JSON scene,
+// renders the same image from the file's camera, and what cannot be honoured is refused by name.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "fixtures.h"
+#include "io/image_io.h"
+#include "render/image_metrics.h"
+
+namespace fs = std::filesystem;
+using namespace penumbra;
+using test::CommandResult;
+using test::run;
+
+namespace {
+
+std::string scenePath(const std::string& name) { return cat(PENUMBRA_SOURCE_DIR, "/scenes/", name); }
+
+nlohmann::json reportOf(const std::string& dir) {
+    std::ifstream in(dir + "/report.json");
+    return nlohmann::json::parse(in);
+}
+
+// The largest relative difference between two reports' numbers per object and in the totals, and
+// where it is.
+std::pair<double, std::string> largestDifference(const nlohmann::json& a, const nlohmann::json& b) {
+    std::pair<double, std::string> worst{0, ""};
+    const auto compare = [&](const nlohmann::json& x, const nlohmann::json& y, const std::string& where) {
+        if (!y.is_number() || !x.is_number()) return;
+        const double u = x.get<double>(), v = y.get<double>();
+        const double d = std::abs(u - v) / std::max(std::abs(u), 1e-12);
+        if (d > worst.first) worst = {d, where};
+    };
+    for (const auto& [name, object] : a["objects"].items()) {
+        if (!b["objects"].contains(name)) return {1e300, "object " + name + " missing"};
+        for (const auto& [key, value] : object.items()) {
+            const nlohmann::json& other = b["objects"][name][key];
+            if (value.is_array())
+                for (size_t c = 0; c < value.size(); ++c) compare(value[c], other[c], name + "." + key);
+            else
+                compare(value, other, name + "." + key);
+        }
+    }
+    for (const auto& [key, value] : a["totals"].items())
+        for (size_t c = 0; c < value.size(); ++c) compare(value[c], b["totals"][key][c], "totals." + key);
+    if (a["objects"].size() != b["objects"].size()) worst = {1e300, "object counts differ"};
+    return worst;
+}
+
+}  // namespace
+
+// Blender's glTF of the Cornell box (quads split into triangle pairs, metres, float positions,
+// emission as emissiveFactor x KHR_materials_emissive_strength, the camera as a node) gives the JSON
+// scene's report: the same 19 objects by name, areas, powers and radiosities within 1e-6 (the file
+// holds positions in float), and the same image from its own camera.
+TEST(Import, BlenderGltfOfTheCornellBoxSolvesAndRendersAsTheJsonScene) {
+    const std::string out = test::tempDir() + "/import-gltf";
+    fs::remove_all(out);
+    const std::string settings = " --patches 600 --quiet";
+    ASSERT_EQ(run(cat("solve ", scenePath("cornell-box.json"), settings, " --out ", out, "/json")).status, 0);
+    const CommandResult gltf =
+        run(cat("solve ", scenePath("blender/cornell-box.glb"), settings, " --out ", out, "/glb"));
+    ASSERT_EQ(gltf.status, 0) << gltf.output;
+    const auto [difference, where] = largestDifference(reportOf(out + "/json"), reportOf(out + "/glb"));
+    EXPECT_LT(difference, 1e-6) << where;
+    EXPECT_EQ(reportOf(out + "/glb")["objects"].size(), 19u);
+
+    // Each from its own file's camera (the glTF's a camera node, rotated half a turn about y).
+    const std::string view = " --integrator radiosity --resolution 96x96 --quiet";
+    ASSERT_EQ(run(cat("render ", scenePath("cornell-box.json"), " --solution ", out, "/json", view, " --out ", out,
+                      "/json.exr"))
+                  .status,
+              0);
+    const CommandResult image = run(cat("render ", scenePath("blender/cornell-box.glb"), " --solution ", out, "/glb",
+                                        view, " --out ", out, "/glb.exr"));
+    ASSERT_EQ(image.status, 0) << image.output;
+    const ImageError e = compareBlurred(readLinearImage(out + "/glb.exr"), readLinearImage(out + "/json.exr"));
+    EXPECT_LT(e.pooledL1, 1e-3) << "pooled L1 after a 5x5 blur";
+}
+
+// What a glTF file holds that the solve cannot honour is refused with the file and what to do; a
+// file that is not glTF is refused as such; nothing is written.
+TEST(Import, WhatAGltfCannotGiveIsRefusedByName) {
+    const std::string dir = test::tempDir() + "/import-refused";
+    fs::create_directories(dir);
+    // One triangle, its three float positions in a data URI (base64 of 36 bytes).
+    const auto gltf = [&](const std::string& name, const std::string& extra, int mode) {
+        const float xyz[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+        const auto* bytes = reinterpret_cast<const unsigned char*>(xyz);
+        static const char* digits = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+        std::string b64;
+        for (size_t i = 0; i < sizeof xyz; i += 3) {
+            const uint32_t v = uint32_t(bytes[i]) << 16 | uint32_t(bytes[i + 1]) << 8 | bytes[i + 2];
+            for (int k = 3; k >= 0; --k) b64 += digits[(v >> (6 * k)) & 63];
+        }
+        const std::string text = cat(
+            R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], )",
+            R"("nodes": [{"name": "tri", "mesh": 0}], "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "mode": )",
+            mode, R"(, "material": 0}]}], "materials": [{"emissiveFactor": [1, 1, 1]}], )",
+            R"("buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,)", b64, R"("}], )",
+            R"("bufferViews": [{"buffer": 0, "byteLength": 36}], )",
+            R"("accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", )",
+            R"("min": [0, 0, 0], "max": [1, 1, 0]}])", extra, "}");
+        const std::string path = dir + "/" + name;
+        std::ofstream(path) << text;
+        return path;
+    };
+    // The well-formed file solves: the reader is right, so the refusals below are for what they name.
+    const CommandResult good = run(cat("solve ", gltf("good.gltf", "", 4), " --out ", dir, "/good --quiet"));
+    EXPECT_EQ(good.status, 0) << good.output;
+    struct Case {
+        std::string file, expected;
+    };
+    const std::vector<Case> cases{
+        {gltf("lines.gltf", "", 1), "primitive mode 1"},
+        {gltf(
+             "light.gltf",
+             R"(, "extensionsUsed": ["KHR_lights_punctual"], "extensions": {"KHR_lights_punctual": {"lights": [{"type": "point"}]}})",
+             4),
+         "model each lamp as emissive geometry"},
+        {[&] {
+             std::ofstream(dir + "/text.glb") << "not a glTF file";
+             return dir + "/text.glb";
+         }(),
+         "not a glTF 2.0 file"},
+    };
+    for (const Case& c : cases) {
+        const std::string out = dir + "/out-" + fs::path(c.file).stem().string();
+        const CommandResult r = run(cat("solve ", c.file, " --out ", out));
+        EXPECT_NE(r.status, 0) << c.file;
+        EXPECT_NE(r.output.find(c.file), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find(c.expected), std::string::npos) << r.output;
+        EXPECT_FALSE(fs::exists(out)) << out;
+    }
+}
