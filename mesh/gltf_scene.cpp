@@ -151,29 +151,6 @@ std::vector<T> readAccessor(const tinygltf::Model& model, int index, int compone
     return out;
 }
 
-// Two triangles that share an edge and together make a planar convex quad, as that quad's corners
-// in order (an exporter's split of a quad face); else empty.
-std::vector<Vec3> quadOf(const std::vector<Vec3>& t) {
-    if (t.size() != 6) return {};
-    for (int r = 0; r < 3; ++r) {
-        // First triangle rotated to (a, b, c); the second must hold c and a (reversed) and one more.
-        const Vec3 &a = t[size_t(r)], &b = t[size_t((r + 1) % 3)], &c = t[size_t((r + 2) % 3)];
-        for (int s = 0; s < 3; ++s) {
-            const Vec3 &p = t[size_t(3 + s)], &q = t[size_t(3 + (s + 1) % 3)], &d = t[size_t(3 + (s + 2) % 3)];
-            if (p == a && q == c) {
-                std::vector<Vec3> quad{a, b, c, d};
-                try {
-                    checkQuad(quad, Where{"", ""});
-                } catch (const Error&) {
-                    return {};
-                }
-                return quad;
-            }
-        }
-    }
-    return {};
-}
-
 }  // namespace
 
 bool isGltfPath(const std::string& path) {
@@ -316,23 +293,7 @@ Scene loadGltfScene(const std::string& path) {
                 if (name != wanted) renamed.push_back(cat("'", wanted, "' as '", name, "'"));
                 o.name = name;
                 o.material = material(prim.material, wp);
-                // One triangle, or two making a planar convex quad (an exporter's split of a quad
-                // face), is meshed as our triangle or quad; anything else as a mesh.
-                std::vector<Vec3> corners;
-                for (const auto& f : soup.faces)
-                    for (int v : f) corners.push_back(soup.vertices[size_t(v)]);
-                if (soup.faces.size() == 1) {
-                    o.type = ShapeType::Triangle;
-                    o.vertices = corners;
-                    checkTriangle(o.vertices, wp);
-                } else if (std::vector<Vec3> quad = quadOf(corners); !quad.empty()) {
-                    o.type = ShapeType::Quad;
-                    o.vertices = quad;
-                } else {
-                    o.type = ShapeType::Mesh;
-                    o.mesh = std::move(soup);
-                    o.file = path;
-                }
+                shapeFromSoup(o, std::move(soup), path, wp);
                 scene.objects.push_back(std::move(o));
             }
         }

@@ -39,6 +39,11 @@ void checkCoordinate(const Vec3& p, double metres, const Where& w);
 void checkQuad(const std::vector<Vec3>& v, const Where& w);
 void checkTriangle(const std::vector<Vec3>& v, const Where& w);
 
+// The shape of an object read from a polygon soup (glTF, OBJ): one triangle is our `triangle`; one
+// planar convex quad, or two triangles that make one (an exporter's split of a quad face), our `quad`,
+// meshed as the JSON scene's; anything else our `mesh` (from `file`).
+void shapeFromSoup(SceneObject& o, PolygonSoup soup, const std::string& file, const Where& w);
+
 // Brings a scene far below a millimetre or above a thousand kilometres across to half a unit to one
 // unit across inside, by a power of two (Scene::metresPerUnit); refuses one whose areas in m^2
 // would leave double precision.

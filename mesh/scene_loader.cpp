@@ -14,6 +14,7 @@
 #include "core/log.h"
 #include "mesh/gltf_scene.h"
 #include "mesh/mesh_file.h"
+#include "mesh/obj_scene.h"
 #include "mesh/scene.h"
 #include "mesh/scene_detail.h"
 
@@ -100,6 +101,60 @@ void normaliseLengths(Scene& scene, const Where& top) {
         o.toWorld = shrink * o.toWorld;
     }
     scene.metresPerUnit *= s;
+}
+
+namespace {
+
+// Two triangles that share an edge and together make a planar convex quad, as that quad's corners
+// in order (an exporter's split of a quad face); else empty.
+std::vector<Vec3> quadOf(const std::vector<Vec3>& t) {
+    if (t.size() != 6) return {};
+    for (int r = 0; r < 3; ++r) {
+        // First triangle rotated to (a, b, c); the second must hold c and a (reversed) and one more.
+        const Vec3 &a = t[size_t(r)], &b = t[size_t((r + 1) % 3)], &c = t[size_t((r + 2) % 3)];
+        for (int s = 0; s < 3; ++s) {
+            const Vec3 &p = t[size_t(3 + s)], &q = t[size_t(3 + (s + 1) % 3)], &d = t[size_t(3 + (s + 2) % 3)];
+            if (p == a && q == c) {
+                std::vector<Vec3> quad{a, b, c, d};
+                try {
+                    checkQuad(quad, Where{"", ""});
+                } catch (const Error&) {
+                    return {};
+                }
+                return quad;
+            }
+        }
+    }
+    return {};
+}
+
+}  // namespace
+
+void shapeFromSoup(SceneObject& o, PolygonSoup soup, const std::string& file, const Where& w) {
+    std::vector<Vec3> corners;
+    for (const auto& f : soup.faces)
+        for (int v : f) corners.push_back(soup.vertices[size_t(v)]);
+    const bool oneFace = soup.faces.size() == 1;
+    std::vector<Vec3> quad = oneFace && corners.size() == 4 ? corners : quadOf(corners);
+    if (!quad.empty() && oneFace) {
+        try {
+            checkQuad(quad, Where{"", ""});
+        } catch (const Error&) {
+            quad.clear();
+        }
+    }
+    if (oneFace && corners.size() == 3) {
+        o.type = ShapeType::Triangle;
+        o.vertices = corners;
+        checkTriangle(o.vertices, w);
+    } else if (!quad.empty()) {
+        o.type = ShapeType::Quad;
+        o.vertices = quad;
+    } else {
+        o.type = ShapeType::Mesh;
+        o.mesh = std::move(soup);
+        o.file = file;
+    }
 }
 
 }  // namespace scene_detail
@@ -356,6 +411,7 @@ Camera parseCamera(const std::string& text, const Scene& scene, const std::strin
 
 Scene loadScene(const std::string& path) {
     if (isGltfPath(path)) return loadGltfScene(path);
+    if (isObjPath(path)) return loadObjScene(path);
     const std::string text = readFile(path, "scene file");
     Json root;
     try {

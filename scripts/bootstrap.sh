@@ -11,7 +11,7 @@ cd "$(dirname "$0")/.."
 PACKAGES=(
   cmake ninja-build g++ pkg-config python3
   libembree-dev libeigen3-dev libopenimageio-dev openimageio-tools libopenmesh-dev
-  libtbb-dev nlohmann-json3-dev libcli11-dev libgtest-dev libnanoflann-dev libtinygltf-dev
+  libtbb-dev nlohmann-json3-dev libcli11-dev libgtest-dev libnanoflann-dev libtinygltf-dev libtinyobjloader-dev
   libglfw3-dev libimgui-dev libgl-dev libegl-dev libgl1-mesa-dri xvfb xauth
   libbenchmark-dev gnuplot-nox clang-format libjemalloc-dev libopenexr-dev libpng-dev
   clang libclang-rt-14-dev libopenmpi-dev openmpi-bin

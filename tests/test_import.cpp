@@ -1,5 +1,5 @@
-// Scenes as users have them (issue 17): glTF 2.0 written by Blender's own exporter
-// (scenes/blender/export_scene.py made the committed files) solves to the report of our JSON scene,
+// Scenes as users have them (issue 17): glTF 2.0 and OBJ + MTL written by Blender's own exporters
+// (scenes/blender/export_scene.py made the committed files) solve to the report of our JSON scene,
 // renders the same image from the file's camera, and what cannot be honoured is refused by name.
 #include <gtest/gtest.h>
 
@@ -80,6 +80,68 @@ TEST(Import, BlenderGltfOfTheCornellBoxSolvesAndRendersAsTheJsonScene) {
     ASSERT_EQ(image.status, 0) << image.output;
     const ImageError e = compareBlurred(readLinearImage(out + "/glb.exr"), readLinearImage(out + "/json.exr"));
     EXPECT_LT(e.pooledL1, 1e-3) << "pooled L1 after a 5x5 blur";
+}
+
+// Blender's OBJ + MTL of the Cornell box (quads kept, metres in decimals, Kd and Ke) gives the JSON
+// scene's report (measured: within 1e-15) and, from the JSON's camera given in metres, its image.
+TEST(Import, BlenderObjOfTheCornellBoxSolvesAndRendersAsTheJsonScene) {
+    const std::string out = test::tempDir() + "/import-obj";
+    fs::remove_all(out);
+    const std::string settings = " --patches 600 --quiet";
+    ASSERT_EQ(run(cat("solve ", scenePath("cornell-box.json"), settings, " --out ", out, "/json")).status, 0);
+    const CommandResult obj =
+        run(cat("solve ", scenePath("blender/cornell-box.obj"), settings, " --out ", out, "/obj"));
+    ASSERT_EQ(obj.status, 0) << obj.output;
+    const auto [difference, where] = largestDifference(reportOf(out + "/json"), reportOf(out + "/obj"));
+    EXPECT_LT(difference, 1e-6) << where;
+    const std::string view = " --integrator radiosity --resolution 96x96 --quiet";
+    ASSERT_EQ(run(cat("render ", scenePath("cornell-box.json"), " --solution ", out, "/json", view, " --out ", out,
+                      "/json.exr"))
+                  .status,
+              0);
+    const std::string camera =
+        R"( --camera '{"position": [0.278, 0.273, -0.8], "look_at": [0.278, 0.273, 0], "fov_y_deg": 39.3}')";
+    const CommandResult image = run(cat("render ", scenePath("blender/cornell-box.obj"), " --solution ", out, "/obj",
+                                        view, camera, " --out ", out, "/obj.exr"));
+    ASSERT_EQ(image.status, 0) << image.output;
+    const ImageError e = compareBlurred(readLinearImage(out + "/obj.exr"), readLinearImage(out + "/json.exr"));
+    EXPECT_LT(e.pooledL1, 1e-3) << "pooled L1 after a 5x5 blur";
+}
+
+// An MTL's mirror (illum 3) and glass (illum 7, Ni) become ours: a mirror quad facing a lit wall and a
+// glass slab solve with specular transport; an OBJ whose material library is missing is refused,
+// since every lamp would go dark.
+TEST(Import, ObjMaterialsMapToMirrorAndGlassAndAMissingLibraryIsRefused) {
+    const std::string dir = test::tempDir() + "/import-obj-materials";
+    fs::create_directories(dir);
+    std::ofstream(dir + "/room.mtl") << "newmtl lamp\nKd 0.5 0.5 0.5\nKe 10 10 10\nillum 1\n"
+                                        "newmtl chrome\nKs 0.9 0.9 0.9\nNs 1000\nillum 3\n"
+                                        "newmtl glass\nNi 1.5\nillum 7\n";
+    const std::string quads =
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+        "v 0 0 1\nv 0 1 1\nv 1 1 1\nv 1 0 1\n"
+        "v 0 0 2\nv 1 0 2\nv 1 1 2\nv 0 1 2\n";
+    std::ofstream(dir + "/room.obj") << "mtllib room.mtl\n"
+                                     << quads
+                                     << "o lamp\nusemtl lamp\nf 1 2 3 4\n"
+                                        "o mirror\nusemtl chrome\nf 5 6 7 8\n"
+                                        "o pane\nusemtl glass\nf 9 10 11 12\n";
+    const CommandResult r = run(cat("solve ", dir, "/room.obj --out ", dir, "/out --patches 50"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_EQ(r.output.find("no mirrors or glass"), std::string::npos) << r.output;
+    const nlohmann::json report = reportOf(dir + "/out");
+    for (const char* name : {"lamp", "mirror", "pane"}) EXPECT_TRUE(report["objects"].contains(name)) << name;
+    // The mirror and the glass hold no radiosity of their own: B = 0 on specular patches.
+    EXPECT_EQ(report["objects"]["mirror"]["radiosity_mean"][0].get<double>(), 0.0);
+    EXPECT_EQ(report["objects"]["pane"]["radiosity_mean"][0].get<double>(), 0.0);
+    EXPECT_GT(report["objects"]["lamp"]["emitted_power_w"][0].get<double>(), 0.0);
+
+    std::ofstream(dir + "/lost.obj") << "mtllib nowhere.mtl\n" << quads << "usemtl lamp\nf 1 2 3 4\n";
+    const CommandResult lost = run(cat("solve ", dir, "/lost.obj --out ", dir, "/lost"));
+    EXPECT_NE(lost.status, 0);
+    EXPECT_NE(lost.output.find("lost.obj: its material library (mtllib) cannot be read"), std::string::npos)
+        << lost.output;
+    EXPECT_FALSE(fs::exists(dir + "/lost"));
 }
 
 // What a glTF file holds that the solve cannot honour is refused with the file and what to do; a
