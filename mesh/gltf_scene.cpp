@@ -153,13 +153,9 @@ std::vector<T> readAccessor(const tinygltf::Model& model, int index, int compone
 
 }  // namespace
 
-bool isGltfPath(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-    return ext == ".glb" || ext == ".gltf";
-}
+bool isGltfPath(const std::string& path) { return hasExtension(path, {".glb", ".gltf"}); }
 
-Scene loadGltfScene(const std::string& path) {
+Scene readGltfScene(const std::string& path) {
     const std::string bytes = readFile(path, "glTF file");
     const Where top{path, ""};
     tinygltf::Model model;
@@ -196,6 +192,7 @@ Scene loadGltfScene(const std::string& path) {
     // rough: here diffuse of reflectance 1).
     std::map<int, int> materialOf;
     std::set<std::string> materialNames;
+    std::vector<std::string> renamedMaterials;  // not logged: the report names objects, not materials
     const auto material = [&](int index, const Where& w) {
         if (const auto it = materialOf.find(index); it != materialOf.end()) return it->second;
         tinygltf::Material g;
@@ -211,7 +208,7 @@ Scene loadGltfScene(const std::string& path) {
             g.pbrMetallicRoughness.roughnessFactor = 1;
             notes.insert("primitives without a material take glTF's default (white, reflectance 1)");
         }
-        for (int k = 2; !materialNames.insert(name).second; ++k) name = cat(g.name, "-", k);
+        name = uniqueName(name, materialNames, renamedMaterials);
         scene.materials.push_back(mapMaterial(g, name, wm, notes));
         materialOf[index] = int(scene.materials.size()) - 1;
         return materialOf[index];
@@ -288,10 +285,7 @@ Scene loadGltfScene(const std::string& path) {
                 SceneObject o;
                 std::string name = !node.name.empty() ? node.name : !mesh.name.empty() ? mesh.name : cat("node", index);
                 if (mesh.primitives.size() > 1) name += cat("#", p);
-                const std::string wanted = name;
-                for (int k = 2; !objectNames.insert(name).second; ++k) name = cat(wanted, "-", k);
-                if (name != wanted) renamed.push_back(cat("'", wanted, "' as '", name, "'"));
-                o.name = name;
+                o.name = uniqueName(name, objectNames, renamed);
                 o.material = material(prim.material, wp);
                 shapeFromSoup(o, std::move(soup), path, wp);
                 scene.objects.push_back(std::move(o));
@@ -302,13 +296,13 @@ Scene loadGltfScene(const std::string& path) {
     };
     for (int root : model.scenes[size_t(sceneIndex)].nodes) visit(root, Eigen::Affine3d::Identity());
     if (scene.objects.empty()) top.fail("the scene has no meshes");
-    if (!renamed.empty()) {
-        std::string list;
-        for (const std::string& r : renamed) list += cat(list.empty() ? "" : ", ", r);
-        logInfo(path, ": objects named alike are told apart: ", list);
-    }
-    for (const std::string& note : notes) logInfo(path, ": ", note);
-    normaliseLengths(scene, top);
+    logImport(path, renamed, notes);
+    return scene;
+}
+
+Scene loadGltfScene(const std::string& path) {
+    Scene scene = readGltfScene(path);
+    normaliseLengths(scene, Where{path, ""});
     // The camera was found in metres; the lengths may since have been scaled (Scene::metresPerUnit).
     scene.camera.position /= scene.metresPerUnit;
     scene.camera.lookAt /= scene.metresPerUnit;

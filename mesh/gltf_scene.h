@@ -13,6 +13,10 @@ namespace penumbra {
 
 // Throws Error naming the file and the node, mesh or material at fault.
 Scene loadGltfScene(const std::string& path);
+// The file's objects (world space, the file's own lengths), materials and camera as read, before the
+// lengths are normalised (Scene::metresPerUnit): what a JSON mesh object with "materials": "from-file"
+// takes in.
+Scene readGltfScene(const std::string& path);
 
 // Whether `path` names a glTF file (.glb or .gltf, any case).
 bool isGltfPath(const std::string& path);

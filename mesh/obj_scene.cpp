@@ -53,7 +53,7 @@ Material mapMaterial(const tinyobj::material_t& t, const std::string& name, cons
 
 }  // namespace
 
-Scene loadObjScene(const std::string& path) {
+Scene readObjScene(const std::string& path) {
     const std::string bytes = readFile(path, "OBJ file");
     const Where top{path, ""};
     tinyobj::ObjReaderConfig config;
@@ -131,34 +131,27 @@ Scene loadObjScene(const std::string& path) {
             if (byMaterial.size() > 1)
                 name += "#" + (material >= 0 && size_t(material) < mtl.size() ? mtl[size_t(material)].name
                                                                               : std::string("default"));
-            const std::string wanted = name;
-            for (int k = 2; !names.insert(name).second; ++k) name = cat(wanted, "-", k);
-            if (name != wanted) renamed.push_back(cat("'", wanted, "' as '", name, "'"));
-            o.name = name;
+            o.name = uniqueName(name, names, renamed);
             o.material = material >= 0 && size_t(material) < mtl.size() ? material : fallback();
-            const Where w = top.at(cat("'", name, "'"));
+            const Where w = top.at(cat("'", o.name, "'"));
             for (const Vec3& v : soup.vertices) checkCoordinate(v, 1, w);
             shapeFromSoup(o, std::move(soup), path, w);
             scene.objects.push_back(std::move(o));
         }
     }
     if (scene.objects.empty()) top.fail("the file holds no faces");
-    if (!renamed.empty()) {
-        std::string list;
-        for (const std::string& r : renamed) list += cat(list.empty() ? "" : ", ", r);
-        logInfo(path, ": objects named alike are told apart: ", list);
-    }
-    for (const std::string& note : notes) logInfo(path, ": ", note);
-    normaliseLengths(scene, top);
+    logImport(path, renamed, notes);
+    return scene;
+}
+
+Scene loadObjScene(const std::string& path) {
+    Scene scene = readObjScene(path);
+    normaliseLengths(scene, Where{path, ""});
     if (!scene.hasEmitter())
         logWarning(path, ": no material emits light (Ke): every radiosity will be zero (a black answer)");
     return scene;
 }
 
-bool isObjPath(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-    return ext == ".obj";
-}
+bool isObjPath(const std::string& path) { return hasExtension(path, {".obj"}); }
 
 }  // namespace penumbra

@@ -12,6 +12,8 @@ namespace penumbra {
 
 // Throws Error naming the file and the shape or material at fault.
 Scene loadObjScene(const std::string& path);
+// The file's objects and materials as read, before the lengths are normalised (readGltfScene).
+Scene readObjScene(const std::string& path);
 
 // Whether `path` names an OBJ file (.obj, any case).
 bool isObjPath(const std::string& path);

@@ -3,6 +3,8 @@
 #pragma once
 
 #include <cstdint>
+#include <initializer_list>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -43,6 +45,16 @@ void checkTriangle(const std::vector<Vec3>& v, const Where& w);
 // planar convex quad, or two triangles that make one (an exporter's split of a quad face), our `quad`,
 // meshed as the JSON scene's; anything else our `mesh` (from `file`).
 void shapeFromSoup(SceneObject& o, PolygonSoup soup, const std::string& file, const Where& w);
+
+// Whether `path` ends in one of `extensions` (".glb", ...), in any case.
+bool hasExtension(const std::string& path, std::initializer_list<const char*> extensions);
+
+// `wanted`, or `wanted-2`, `wanted-3`, ... : the first not yet in `names` (which takes it); a changed
+// name goes into `renamed` for the log.
+std::string uniqueName(const std::string& wanted, std::set<std::string>& names, std::vector<std::string>& renamed);
+
+// The log lines of an imported file: the names changed to tell objects apart, and each note once.
+void logImport(const std::string& path, const std::vector<std::string>& renamed, const std::set<std::string>& notes);
 
 // Brings a scene far below a millimetre or above a thousand kilometres across to half a unit to one
 // unit across inside, by a power of two (Scene::metresPerUnit); refuses one whose areas in m^2

@@ -130,6 +130,30 @@ std::vector<Vec3> quadOf(const std::vector<Vec3>& t) {
 
 }  // namespace
 
+bool hasExtension(const std::string& path, std::initializer_list<const char*> extensions) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    for (const char* e : extensions)
+        if (ext == e) return true;
+    return false;
+}
+
+std::string uniqueName(const std::string& wanted, std::set<std::string>& names, std::vector<std::string>& renamed) {
+    std::string name = wanted;
+    for (int k = 2; !names.insert(name).second; ++k) name = cat(wanted, "-", k);
+    if (name != wanted) renamed.push_back(cat("'", wanted, "' as '", name, "'"));
+    return name;
+}
+
+void logImport(const std::string& path, const std::vector<std::string>& renamed, const std::set<std::string>& notes) {
+    if (!renamed.empty()) {
+        std::string list;
+        for (const std::string& r : renamed) list += cat(list.empty() ? "" : ", ", r);
+        logInfo(path, ": objects named alike are told apart: ", list);
+    }
+    for (const std::string& note : notes) logInfo(path, ": ", note);
+}
+
 void shapeFromSoup(SceneObject& o, PolygonSoup soup, const std::string& file, const Where& w) {
     std::vector<Vec3> corners;
     for (const auto& f : soup.faces)
@@ -486,11 +510,19 @@ Scene loadScene(const std::string& path) {
         const Json& type = require(j, "type", w);
         if (!type.is_string()) w.at("type").fail("expected a string");
         const std::string t = type.get<std::string>();
-        const Json& matName = require(j, "material", w);
-        if (!matName.is_string()) w.at("material").fail("expected a material name");
-        for (size_t m = 0; m < scene.materials.size(); ++m)
-            if (scene.materials[m].name == matName.get<std::string>()) o.material = int(m);
-        if (o.material < 0) w.at("material").fail(cat("unknown material '", matName.get<std::string>(), "'"));
+        // A mesh of a glTF or OBJ file may keep the file's own materials instead of naming one.
+        const bool fromFile = t == "mesh" && j.contains("materials");
+        if (fromFile) {
+            if (!j["materials"].is_string() || j["materials"].get<std::string>() != "from-file")
+                w.at("materials").fail("expected \"from-file\" (the file's own materials), or give \"material\"");
+            if (j.contains("material")) w.fail("give either \"material\" or \"materials\": \"from-file\", not both");
+        } else {
+            const Json& matName = require(j, "material", w);
+            if (!matName.is_string()) w.at("material").fail("expected a material name");
+            for (size_t m = 0; m < scene.materials.size(); ++m)
+                if (scene.materials[m].name == matName.get<std::string>()) o.material = int(m);
+            if (o.material < 0) w.at("material").fail(cat("unknown material '", matName.get<std::string>(), "'"));
+        }
 
         const Eigen::Affine3d scale(Eigen::Scaling(scene.sceneUnit()));
         o.toWorld = scale * (j.contains("transform") ? parseTransform(j["transform"], w.at("transform"))
@@ -515,19 +547,72 @@ Scene loadScene(const std::string& path) {
             if (o.radius * scene.unitScale > kAbsurdMetres)
                 w.at("radius").fail("radius is absurdly large: check unit_scale");
         } else if (t == "mesh") {
-            checkKeys(j, w, {"name", "type", "material", "file", "transform"});
+            checkKeys(j, w, {"name", "type", "material", "materials", "file", "transform"});
             o.type = ShapeType::Mesh;
             const Json& file = require(j, "file", w);
             if (!file.is_string()) w.at("file").fail("expected a path");
             o.file = (sceneDir / file.get<std::string>()).string();
-            o.mesh = readPolygonSoup(o.file, w.at("file").path);
+            // The file's bytes into the fingerprints, once it has been read (and its errors named).
+            const auto fingerprint = [&] {
+                const std::string bytes = readFile(o.file, "mesh file");
+                scene.fingerprint = fnv1a(bytes, scene.fingerprint);
+                scene.fileFingerprint = fnv1a(bytes, scene.fileFingerprint);
+            };
+            const bool gltf = isGltfPath(o.file);
+            if (fromFile && !gltf && !isObjPath(o.file))
+                w.at("materials")
+                    .fail("\"from-file\" needs a glTF (.glb, .gltf) or OBJ file, whose materials it takes");
+            if (fromFile) {
+                // The file's objects, each with its material, named "<this object>/<the file's name>"
+                // (and its materials "<this object>/<material>"), in the scene's units, as every mesh
+                // file is, with this object's transform.
+                const Scene parts = gltf ? readGltfScene(o.file) : readObjScene(o.file);
+                const int firstMaterial = int(scene.materials.size());
+                for (Material m : parts.materials) {
+                    m.name = cat(name, "/", m.name);
+                    scene.materials.push_back(std::move(m));
+                }
+                for (SceneObject part : parts.objects) {
+                    part.name = cat(name, "/", part.name);
+                    if (!names.insert(part.name).second)
+                        w.fail(cat("its part '", part.name, "' clashes with an object"));
+                    part.material += firstMaterial;
+                    for (auto* points : {&part.vertices, &part.mesh.vertices})
+                        for (Vec3& v : *points) {
+                            v = o.toWorld * v;
+                            checkCoordinate(v, scene.metresPerUnit, w.at("file"));
+                        }
+                    scene.objects.push_back(std::move(part));
+                }
+                fingerprint();
+                continue;
+            }
+            if (gltf) {
+                // The file's triangles, all of them, with this object's material.
+                for (const SceneObject& part : readGltfScene(o.file).objects) {
+                    const int first = int(o.mesh.vertices.size());
+                    if (part.type == ShapeType::Mesh) {
+                        o.mesh.vertices.insert(o.mesh.vertices.end(), part.mesh.vertices.begin(),
+                                               part.mesh.vertices.end());
+                        for (std::vector<int> f : part.mesh.faces) {
+                            for (int& v : f) v += first;
+                            o.mesh.faces.push_back(std::move(f));
+                        }
+                    } else {
+                        o.mesh.vertices.insert(o.mesh.vertices.end(), part.vertices.begin(), part.vertices.end());
+                        std::vector<int> f(part.vertices.size());
+                        for (size_t k = 0; k < f.size(); ++k) f[k] = first + int(k);
+                        o.mesh.faces.push_back(std::move(f));
+                    }
+                }
+            } else {
+                o.mesh = readPolygonSoup(o.file, w.at("file").path);
+            }
             for (auto& v : o.mesh.vertices) {
                 v = o.toWorld * v;
                 checkCoordinate(v, scene.metresPerUnit, w.at("file"));
             }
-            const std::string bytes = readFile(o.file, "mesh file");
-            scene.fingerprint = fnv1a(bytes, scene.fingerprint);
-            scene.fileFingerprint = fnv1a(bytes, scene.fileFingerprint);
+            fingerprint();
         } else {
             w.at("type").fail(cat("unknown object type '", t, "' (expected quad, triangle, mesh or sphere)"));
         }

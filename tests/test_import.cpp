@@ -52,6 +52,31 @@ std::pair<double, std::string> largestDifference(const nlohmann::json& a, const 
     return worst;
 }
 
+// Solves the Blender export `file` (of scenes/cornell-box.json) and the JSON scene alike, in `out`:
+// the reports agree within 1e-6 (every object's area, radiosity and powers, and the totals), and
+// radiosity views (the file's from `camera`, empty for its own) agree within 1e-3 pooled L1 after a
+// 5x5 blur.
+void expectTheJsonCornellBox(const std::string& out, const std::string& file, const std::string& camera) {
+    fs::remove_all(out);
+    const std::string settings = " --patches 300 --form-factors rays --quiet";
+    ASSERT_EQ(run(cat("solve ", scenePath("cornell-box.json"), settings, " --out ", out, "/json")).status, 0);
+    const CommandResult solved = run(cat("solve ", scenePath(file), settings, " --out ", out, "/file"));
+    ASSERT_EQ(solved.status, 0) << solved.output;
+    const auto [difference, where] = largestDifference(reportOf(out + "/json"), reportOf(out + "/file"));
+    EXPECT_LT(difference, 1e-6) << where;
+    EXPECT_EQ(reportOf(out + "/file")["objects"].size(), 19u);
+    const std::string view = " --integrator radiosity --resolution 64x64 --quiet";
+    ASSERT_EQ(run(cat("render ", scenePath("cornell-box.json"), " --solution ", out, "/json", view, " --out ", out,
+                      "/json.exr"))
+                  .status,
+              0);
+    const CommandResult image =
+        run(cat("render ", scenePath(file), " --solution ", out, "/file", view, camera, " --out ", out, "/file.exr"));
+    ASSERT_EQ(image.status, 0) << image.output;
+    const ImageError e = compareBlurred(readLinearImage(out + "/file.exr"), readLinearImage(out + "/json.exr"));
+    EXPECT_LT(e.pooledL1, 1e-3) << "pooled L1 after a 5x5 blur";
+}
+
 }  // namespace
 
 // Blender's glTF of the Cornell box (quads split into triangle pairs, metres, float positions,
@@ -59,28 +84,8 @@ std::pair<double, std::string> largestDifference(const nlohmann::json& a, const 
 // scene's report: the same 19 objects by name, areas, powers and radiosities within 1e-6 (the file
 // holds positions in float), and the same image from its own camera.
 TEST(Import, BlenderGltfOfTheCornellBoxSolvesAndRendersAsTheJsonScene) {
-    const std::string out = test::tempDir() + "/import-gltf";
-    fs::remove_all(out);
-    const std::string settings = " --patches 600 --quiet";
-    ASSERT_EQ(run(cat("solve ", scenePath("cornell-box.json"), settings, " --out ", out, "/json")).status, 0);
-    const CommandResult gltf =
-        run(cat("solve ", scenePath("blender/cornell-box.glb"), settings, " --out ", out, "/glb"));
-    ASSERT_EQ(gltf.status, 0) << gltf.output;
-    const auto [difference, where] = largestDifference(reportOf(out + "/json"), reportOf(out + "/glb"));
-    EXPECT_LT(difference, 1e-6) << where;
-    EXPECT_EQ(reportOf(out + "/glb")["objects"].size(), 19u);
-
-    // Each from its own file's camera (the glTF's a camera node, rotated half a turn about y).
-    const std::string view = " --integrator radiosity --resolution 96x96 --quiet";
-    ASSERT_EQ(run(cat("render ", scenePath("cornell-box.json"), " --solution ", out, "/json", view, " --out ", out,
-                      "/json.exr"))
-                  .status,
-              0);
-    const CommandResult image = run(cat("render ", scenePath("blender/cornell-box.glb"), " --solution ", out, "/glb",
-                                        view, " --out ", out, "/glb.exr"));
-    ASSERT_EQ(image.status, 0) << image.output;
-    const ImageError e = compareBlurred(readLinearImage(out + "/glb.exr"), readLinearImage(out + "/json.exr"));
-    EXPECT_LT(e.pooledL1, 1e-3) << "pooled L1 after a 5x5 blur";
+    // From its own camera: a camera node, rotated half a turn about y.
+    expectTheJsonCornellBox(test::tempDir() + "/import-gltf", "blender/cornell-box.glb", "");
 }
 
 // Blender's glTF of cornell-glass: the chrome ball (metallic, roughness 0) a mirror, the glass ball
@@ -119,27 +124,10 @@ TEST(ImportSlow, BlenderGltfOfCornellGlassRendersAsTheJsonScene) {
 // Blender's OBJ + MTL of the Cornell box (quads kept, metres in decimals, Kd and Ke) gives the JSON
 // scene's report (measured: within 1e-15) and, from the JSON's camera given in metres, its image.
 TEST(Import, BlenderObjOfTheCornellBoxSolvesAndRendersAsTheJsonScene) {
-    const std::string out = test::tempDir() + "/import-obj";
-    fs::remove_all(out);
-    const std::string settings = " --patches 600 --quiet";
-    ASSERT_EQ(run(cat("solve ", scenePath("cornell-box.json"), settings, " --out ", out, "/json")).status, 0);
-    const CommandResult obj =
-        run(cat("solve ", scenePath("blender/cornell-box.obj"), settings, " --out ", out, "/obj"));
-    ASSERT_EQ(obj.status, 0) << obj.output;
-    const auto [difference, where] = largestDifference(reportOf(out + "/json"), reportOf(out + "/obj"));
-    EXPECT_LT(difference, 1e-6) << where;
-    const std::string view = " --integrator radiosity --resolution 96x96 --quiet";
-    ASSERT_EQ(run(cat("render ", scenePath("cornell-box.json"), " --solution ", out, "/json", view, " --out ", out,
-                      "/json.exr"))
-                  .status,
-              0);
-    const std::string camera =
-        R"( --camera '{"position": [0.278, 0.273, -0.8], "look_at": [0.278, 0.273, 0], "fov_y_deg": 39.3}')";
-    const CommandResult image = run(cat("render ", scenePath("blender/cornell-box.obj"), " --solution ", out, "/obj",
-                                        view, camera, " --out ", out, "/obj.exr"));
-    ASSERT_EQ(image.status, 0) << image.output;
-    const ImageError e = compareBlurred(readLinearImage(out + "/obj.exr"), readLinearImage(out + "/json.exr"));
-    EXPECT_LT(e.pooledL1, 1e-3) << "pooled L1 after a 5x5 blur";
+    // OBJ has no camera: the JSON's, in metres.
+    expectTheJsonCornellBox(
+        test::tempDir() + "/import-obj", "blender/cornell-box.obj",
+        R"( --camera '{"position": [0.278, 0.273, -0.8], "look_at": [0.278, 0.273, 0], "fov_y_deg": 39.3}')");
 }
 
 // An MTL's mirror (illum 3) and glass (illum 7, Ni) become ours: a mirror quad facing a lit wall and a
@@ -176,6 +164,62 @@ TEST(Import, ObjMaterialsMapToMirrorAndGlassAndAMissingLibraryIsRefused) {
     EXPECT_NE(lost.output.find("lost.obj: its material library (mtllib) cannot be read"), std::string::npos)
         << lost.output;
     EXPECT_FALSE(fs::exists(dir + "/lost"));
+}
+
+// A JSON scene's mesh object may name a glTF or OBJ file and keep its materials ("materials":
+// "from-file"): its parts are the file's objects, named "<object>/<part>", and solve as the file does
+// alone. Without it a glTF's triangles, all of them, take the object's one material.
+TEST(Import, AJsonMeshObjectTakesAFilesObjectsAndMaterials) {
+    const std::string dir = test::tempDir() + "/import-from-file";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const std::string settings = " --patches 300 --form-factors rays --quiet";
+    ASSERT_EQ(run(cat("solve ", scenePath("blender/cornell-box.obj"), settings, " --out ", dir, "/obj")).status, 0);
+    const std::string scene = dir + "/scene.json";
+    std::ofstream(scene) << R"({"materials": {"grey": {"type": "diffuse", "reflectance": 0.5}}, "objects": [)"
+                         << R"({"name": "box", "type": "mesh", "materials": "from-file", "file": ")"
+                         << scenePath("blender/cornell-box.obj") << R"("}]})";
+    const CommandResult r = run(cat("solve ", scene, settings, " --out ", dir, "/json"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    const nlohmann::json alone = reportOf(dir + "/obj"), within = reportOf(dir + "/json");
+    ASSERT_EQ(alone["objects"].size(), within["objects"].size());
+    for (const auto& [name, object] : alone["objects"].items()) {
+        ASSERT_TRUE(within["objects"].contains("box/" + name)) << name;
+        for (const char* key : {"area_m2", "radiosity_mean", "absorbed_power_w"}) {
+            const nlohmann::json &a = object[key], &b = within["objects"]["box/" + name][key];
+            for (size_t c = 0; c < (a.is_array() ? a.size() : 1); ++c) {
+                const double u = a.is_array() ? a[c].get<double>() : a.get<double>();
+                const double v = b.is_array() ? b[c].get<double>() : b.get<double>();
+                EXPECT_NEAR(v, u, 1e-6 * std::abs(u)) << name << " " << key;
+            }
+        }
+    }
+    // The glTF's geometry alone, as one grey object: its area is the box's.
+    std::ofstream(dir + "/shell.json")
+        << R"({"materials": {"grey": {"type": "diffuse", "reflectance": 0.5}}, )"
+        << R"("objects": [{"name": "shell", "type": "mesh", "material": "grey", "file": ")"
+        << scenePath("blender/cornell-box.glb") << R"("}]})";
+    const CommandResult shell =
+        run(cat("solve ", dir, "/shell.json --patches 300 --form-factors rays --quiet --out ", dir, "/shell"));
+    ASSERT_EQ(shell.status, 0) << shell.output;
+    double area = 0;
+    for (const auto& [name, object] : alone["objects"].items()) area += object["area_m2"].get<double>();
+    EXPECT_NEAR(reportOf(dir + "/shell")["objects"]["shell"]["area_m2"].get<double>(), area, 1e-6 * area);
+    // "from-file" needs a file that has materials; and it is that or "material", not both.
+    for (const auto& [text, expected] : std::vector<std::pair<std::string, std::string>>{
+             {R"("materials": "from-file", "file": "x.ply")", "needs a glTF (.glb, .gltf) or OBJ file"},
+             {R"("materials": "from-file", "material": "grey", "file": "x.obj")", "not both"},
+             {R"("materials": "mine", "file": "x.obj")", "expected \"from-file\""}}) {
+        std::ofstream(dir + "/x.ply") << "ply\nformat ascii 1.0\nend_header\n";
+        std::ofstream(dir + "/x.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        std::ofstream(dir + "/bad.json") << R"({"materials": {"grey": {"type": "diffuse", "reflectance": 0.5}}, )"
+                                         << R"("objects": [{"name": "m", "type": "mesh", )" << text << "}]}";
+        const CommandResult bad = run(cat("solve ", dir, "/bad.json --out ", dir, "/bad"));
+        EXPECT_NE(bad.status, 0) << text;
+        EXPECT_NE(bad.output.find("objects[0] 'm'"), std::string::npos) << bad.output;
+        EXPECT_NE(bad.output.find(expected), std::string::npos) << bad.output;
+        EXPECT_FALSE(fs::exists(dir + "/bad"));
+    }
 }
 
 // What a glTF file holds that the solve cannot honour is refused with the file and what to do; a
