@@ -292,7 +292,7 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
 
     Image view;
     if (scene.hasCamera)
-        view = renderRadiosityView(scene, scene.camera, r.patches, *r.rays, corners, {s.viewSpp, common.seed});
+        view = renderRadiosityView(scene, scene.camera, r.patches, r.rays, corners, {s.viewSpp, common.seed});
     if (!cluster::leader()) return cluster::barrier(), 0;
     outputs->write("solution.bin", [&](const std::string& path) { writeSolution(path, r); });
     outputs->write("convergence.csv", [&](const std::string& path) { writeFileAtomic(path, convergenceCsv(r)); });

@@ -465,7 +465,7 @@ Row Bench::runOne(const Setting& s) {
         if (s.method == "radiosity") {
             Timer timer;
             image = quietly([&] {
-                return renderRadiosityView(scene_, cam, solved.patches, *solved.rays, solved.corners,
+                return renderRadiosityView(scene_, cam, solved.patches, solved.rays, solved.corners,
                                            {s.spp, options_.seed});
             });
             row.render = timer.seconds();

@@ -32,7 +32,7 @@ std::vector<Image> renderRadiosityViews(const RenderInputs& in, const std::vecto
     const std::shared_ptr<const RayScene> rays = raysOf(in);
     std::vector<Image> images;
     for (const Camera& camera : cameras)
-        images.push_back(renderRadiosityView(in.scene, camera, in.patches, *rays, in.corners, {spp, in.seed}));
+        images.push_back(renderRadiosityView(in.scene, camera, in.patches, rays, in.corners, {spp, in.seed}));
     return images;
 }
 

@@ -1,9 +1,12 @@
 // The plain view of a solved scene: primary rays through each pixel (stratified, a one-pixel box
 // filter) show the interpolated vertex radiosity as radiance B / pi on diffuse front faces; back
-// faces, and for now mirrors and glass, are black.
+// faces are black. A ray that meets a mirror or glass follows both its branches (Fresnel's
+// reflection and refraction, total internal reflection), weighted, to the diffuse surfaces they
+// reach, which show theirs: mirrors and glass show the solved room in them, without random numbers.
 #pragma once
 
 #include <array>
+#include <memory>
 #include <vector>
 
 #include "mesh/patches.h"
@@ -16,9 +19,12 @@ namespace penumbra {
 struct ViewSettings {
     int samplesPerPixel = 4;
     uint64_t seed = 1;
+    int maxSpecularDepth = 16;    // mirror and glass bounces followed (as the final gather's)
+    double minThroughput = 1e-3;  // specular branches carrying less are dropped
 };
 
-Image renderRadiosityView(const Scene& scene, const Camera& camera, const PatchSet& patches, const RayScene& rays,
+Image renderRadiosityView(const Scene& scene, const Camera& camera, const PatchSet& patches,
+                          const std::shared_ptr<const RayScene>& rays,
                           const std::vector<std::array<Rgb, 4>>& cornerRadiosity, const ViewSettings& settings);
 
 // Radiosity at parameters (u, v) of a patch hit, from its corner values (Embree's quad coordinates;
