@@ -291,8 +291,11 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
                         "); raise --max-iterations or loosen --tolerance; nothing written"));
 
     Image view;
-    if (scene.hasCamera)
-        view = renderRadiosityView(scene, scene.camera, r.patches, r.rays, corners, {s.viewSpp, common.seed});
+    if (scene.hasCamera) {
+        ViewSettings settings{s.viewSpp, common.seed};
+        settings.patchRadiosity = &r.solution.display;
+        view = renderRadiosityView(scene, scene.camera, r.patches, r.rays, corners, settings);
+    }
     if (!cluster::leader()) return cluster::barrier(), 0;
     outputs->write("solution.bin", [&](const std::string& path) { writeSolution(path, r); });
     outputs->write("convergence.csv", [&](const std::string& path) { writeFileAtomic(path, convergenceCsv(r)); });

@@ -5,7 +5,6 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
-#include <dlfcn.h>
 #include <png.h>
 
 #include <algorithm>
@@ -18,9 +17,9 @@
 #include <memory>
 
 #include "core/error.h"
+#include "core/oiio_module.h"
 #include "core/parallel.h"
 #include "io/atomic_file.h"
-#include "io/oiio_module.h"
 #include "io/output_set.h"
 
 namespace penumbra {
@@ -30,43 +29,6 @@ std::string extensionOf(const std::string& path) {
     std::string e = std::filesystem::path(path).extension().string();
     std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return char(std::tolower(c)); });
     return e;
-}
-
-// OpenImageIO's module (io/oiio_module.h), loaded at the first image that needs it: from
-// $PENUMBRA_OIIO_MODULE, else where the build put it, else beside the executable.
-struct OiioModule {
-    decltype(&penumbra_oiio_write) write = nullptr;
-    decltype(&penumbra_oiio_read) read = nullptr;
-};
-
-const OiioModule& oiio() {
-    static const OiioModule module = [] {
-        std::vector<std::string> candidates;
-        if (const char* given = std::getenv("PENUMBRA_OIIO_MODULE")) candidates.push_back(given);
-#ifdef PENUMBRA_OIIO_MODULE_PATH
-        candidates.push_back(PENUMBRA_OIIO_MODULE_PATH);
-#endif
-        std::error_code ec;
-        const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
-        if (!ec) candidates.push_back((self.parent_path() / "libpenumbra_oiio.so").string());
-        std::string tried;
-        for (const std::string& path : candidates) {
-            void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
-            if (!handle) {
-                const char* why = dlerror();
-                tried += cat(tried.empty() ? "" : "; ", why ? why : path);
-                continue;
-            }
-            OiioModule m;
-            m.write = reinterpret_cast<decltype(m.write)>(dlsym(handle, "penumbra_oiio_write"));
-            m.read = reinterpret_cast<decltype(m.read)>(dlsym(handle, "penumbra_oiio_read"));
-            if (m.write && m.read) return m;
-            tried += cat(tried.empty() ? "" : "; ", path, ": not Penumbra's OpenImageIO module");
-        }
-        throw Error(cat("cannot load the OpenImageIO module (", tried.empty() ? "no candidate" : tried,
-                        "); set PENUMBRA_OIIO_MODULE to libpenumbra_oiio.so"));
-    }();
-    return module;
 }
 
 // Writes through `write(temporary)`, then renames into place; a failed write leaves nothing.
@@ -85,7 +47,7 @@ void writeAtomically(const std::string& path, Write&& write) {
 }
 
 void writeWithOiio(const std::string& path, int w, int h, bool isFloat, const void* data) {
-    const OiioModule& m = oiio();
+    const OiioModule& m = oiioModule();
     writeAtomically(path, [&](const std::string& tmp) {
         char why[512] = "";
         if (m.write(tmp.c_str(), w, h, isFloat ? 1 : 0, data, why, sizeof why) != 0) throw Error(why);
@@ -210,13 +172,13 @@ void writeLinearImage(const Image& image, const std::string& path) {
 Image readLinearImage(const std::string& path) {
     Image image;
     if (extensionOf(path) == ".exr" && readExr(path, image)) return image;
-    const OiioModule& m = oiio();
+    const OiioModule& m = oiioModule();
     char why[512] = "";
     int w = 0, h = 0;
-    if (m.read(path.c_str(), &w, &h, nullptr, why, sizeof why) != 0)
+    if (m.read(path.c_str(), &w, &h, nullptr, nullptr, why, sizeof why) != 0)
         throw Error(cat(path, ": cannot read image (", why, ")"));
     image = Image(w, h);
-    if (m.read(path.c_str(), &w, &h, image.rgb.data(), why, sizeof why) != 0)
+    if (m.read(path.c_str(), &w, &h, nullptr, image.rgb.data(), why, sizeof why) != 0)
         throw Error(cat(path, ": cannot read image: ", why));
     return image;
 }

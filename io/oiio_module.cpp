@@ -1,4 +1,4 @@
-#include "io/oiio_module.h"
+#include "core/oiio_module.h"
 
 #include <OpenImageIO/imageio.h>
 
@@ -25,12 +25,13 @@ extern "C" int penumbra_oiio_write(const char* path, int width, int height, int 
     return 0;
 }
 
-extern "C" int penumbra_oiio_read(const char* path, int* width, int* height, float* rgb, char* error,
+extern "C" int penumbra_oiio_read(const char* path, int* width, int* height, int* isFloat, float* rgb, char* error,
                                   size_t errorSize) {
     auto in = OIIO::ImageInput::open(path);
     if (!in) return fail(error, errorSize, OIIO::geterror());
     const OIIO::ImageSpec& spec = in->spec();
     *width = spec.width, *height = spec.height;
+    if (isFloat) *isFloat = spec.format.is_floating_point() ? 1 : 0;
     if (!rgb) return 0;
     const size_t pixels = size_t(spec.width) * size_t(spec.height), channels = size_t(spec.nchannels);
     std::vector<float> all(pixels * channels);

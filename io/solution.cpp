@@ -14,8 +14,10 @@ namespace {
 // interpolated from the display values as they were shown when written. Version 03 adds the indirect
 // irradiance per corner (SolveResult::indirect) after the patches, a flag and then the values; files
 // of 01 and 02 are read without it (their final gather gathers). Version 04 ends with the scene's
-// inside unit in metres (SolveResult::metresPerUnit, 1 in older files), for export in metres.
-constexpr char kMagic[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '4'};
+// inside unit in metres (SolveResult::metresPerUnit, 1 in older files), for export in metres. Version
+// 05 ends with the patches' texture coordinates (PatchSet::uv): a flag, then four (u, v) per patch.
+constexpr char kMagic[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '5'};
+constexpr char kMagic04[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '4'};
 constexpr char kMagic03[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '3'};
 constexpr char kMagic02[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '2'};
 constexpr char kMagic01[8] = {'P', 'N', 'B', 'S', 'O', 'L', '0', '1'};
@@ -77,6 +79,9 @@ std::string solutionBytes(const SolveResult& s) {
         for (const auto& corners : s.indirect)
             for (const Rgb& c : corners) w.put(c);
     w.put(s.metresPerUnit);
+    w.put(uint8_t(s.patches.hasUv()));
+    for (const auto& corners : s.patches.uv)
+        for (const Vec2& t : corners) w.put(t.x()), w.put(t.y());
     return std::move(w.bytes);
 }
 
@@ -93,7 +98,8 @@ SolveResult solutionFromBytes(const std::string& bytes, const std::string& path)
     const bool v01 = bytes.size() >= 8 && std::memcmp(bytes.data(), kMagic01, 8) == 0;
     const bool v02 = bytes.size() >= 8 && std::memcmp(bytes.data(), kMagic02, 8) == 0;
     const bool v03 = bytes.size() >= 8 && std::memcmp(bytes.data(), kMagic03, 8) == 0;
-    if (bytes.size() < 8 || (!v01 && !v02 && !v03 && std::memcmp(bytes.data(), kMagic, 8) != 0))
+    const bool v04 = bytes.size() >= 8 && std::memcmp(bytes.data(), kMagic04, 8) == 0;
+    if (bytes.size() < 8 || (!v01 && !v02 && !v03 && !v04 && std::memcmp(bytes.data(), kMagic, 8) != 0))
         throw Error(cat(path, ": not a Penumbra solution file (or from an incompatible version)"));
     Reader r{bytes, path, 8};
     SolveResult s;
@@ -132,6 +138,14 @@ SolveResult solutionFromBytes(const std::string& bytes, const std::string& path)
         s.metresPerUnit = r.get<double>();
         if (!(s.metresPerUnit > 0) || !std::isfinite(s.metresPerUnit))
             throw Error(cat(path, ": solution file is damaged (its unit)"));
+    }
+    if (!v01 && !v02 && !v03 && !v04 && r.get<uint8_t>() != 0) {
+        s.patches.uv.resize(s.patches.size());
+        for (auto& corners : s.patches.uv)
+            for (Vec2& t : corners) {
+                const double u = r.get<double>(), v = r.get<double>();
+                t = Vec2(u, v);
+            }
     }
     if (r.at != bytes.size())
         throw Error(cat(path, ": solution file is damaged (", bytes.size() - r.at, " bytes too many)"));

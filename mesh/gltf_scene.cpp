@@ -23,12 +23,6 @@ using namespace scene_detail;
 // transmissive is glass, anything else diffuse.
 constexpr double kMirrorMetallic = 0.5, kMirrorRoughness = 0.05, kGlassTransmission = 0.5;
 
-// Images are not decoded: textures are not used yet (named in the log). tinygltf's own decoder
-// would otherwise open every image the file names.
-bool skipImage(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int, void*) {
-    return true;
-}
-
 double extensionNumber(const tinygltf::ExtensionMap& extensions, const char* extension, const char* key,
                        double otherwise) {
     const auto it = extensions.find(extension);
@@ -41,9 +35,63 @@ Rgb factor3(const std::vector<double>& v, double otherwise) {
     return v.size() >= 3 ? Rgb(v[0], v[1], v[2]) : Rgb::Constant(otherwise);
 }
 
-// glTF material -> ours; `notes` collects what is not used, once per kind.
-Material mapMaterial(const tinygltf::Material& g, const std::string& name, const Where& w,
-                     std::set<std::string>& notes) {
+Wrap wrapOf(int mode) {
+    switch (mode) {
+        case TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE:
+            return Wrap::Clamp;
+        case TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT:
+            return Wrap::Mirror;
+        default:
+            return Wrap::Repeat;
+    }
+}
+
+// Texture `index` of the file, as tinygltf decoded its image (PNG or JPEG, 8 or 16 bits: sRGB-encoded
+// colour, as glTF has base colour and emissive textures), once per index.
+class GltfTextures {
+public:
+    GltfTextures(const tinygltf::Model& model, const Where& top) : model_(model), top_(top) {}
+    std::shared_ptr<const Texture> get(int index) {
+        if (const auto it = made_.find(index); it != made_.end()) return it->second;
+        const Where w = top_.at("textures").index(size_t(std::max(index, 0)));
+        if (index < 0 || size_t(index) >= model_.textures.size()) w.fail("does not exist");
+        const tinygltf::Texture& t = model_.textures[size_t(index)];
+        if (t.source < 0 || size_t(t.source) >= model_.images.size())
+            w.fail(cat("its image ", t.source, " does not exist"));
+        const tinygltf::Image& image = model_.images[size_t(t.source)];
+        const Where wi = top_.at("images").index(size_t(t.source), image.name.empty() ? image.uri : image.name);
+        const int components = image.component, bytes = image.bits / 8;
+        if (image.width <= 0 || image.height <= 0 || components < 1 || components > 4 || (bytes != 1 && bytes != 2) ||
+            image.image.size() != size_t(image.width) * size_t(image.height) * size_t(components * bytes))
+            wi.fail("its pixels could not be decoded (PNG and JPEG images are read)");
+        std::vector<float> rgb(size_t(image.width) * size_t(image.height) * 3);
+        const double top = bytes == 1 ? 255.0 : 65535.0;
+        for (size_t p = 0; p < rgb.size() / 3; ++p)
+            for (int c = 0; c < 3; ++c) {
+                const size_t at = (p * size_t(components) + size_t(std::min(c, components - 1))) * size_t(bytes);
+                const double v = bytes == 1 ? image.image[at] : image.image[at] | (image.image[at + 1] << 8);
+                rgb[3 * p + size_t(c)] = float(srgbToLinear(v / top));
+            }
+        Wrap u = Wrap::Repeat, v = Wrap::Repeat;
+        if (t.sampler >= 0 && size_t(t.sampler) < model_.samplers.size())
+            u = wrapOf(model_.samplers[size_t(t.sampler)].wrapS), v = wrapOf(model_.samplers[size_t(t.sampler)].wrapT);
+        const std::string name = !image.uri.empty() && image.uri.rfind("data:", 0) != 0 ? image.uri
+                                 : !image.name.empty()                                  ? image.name
+                                                                                        : cat("image", t.source);
+        return made_[index] = std::make_shared<const Texture>(name, image.width, image.height, std::move(rgb), u, v);
+    }
+
+private:
+    const tinygltf::Model& model_;
+    Where top_;
+    std::map<int, std::shared_ptr<const Texture>> made_;
+};
+
+// glTF material -> ours; `notes` collects what is not used, once per kind. `texCoord` is set to the
+// coordinate set the textures read (0 without textures).
+Material mapMaterial(const tinygltf::Material& g, const std::string& name, const Where& w, std::set<std::string>& notes,
+                     GltfTextures& textures, int& texCoord) {
+    texCoord = 0;
     Material m;
     m.name = name;
     const auto& pbr = g.pbrMetallicRoughness;
@@ -58,11 +106,13 @@ Material mapMaterial(const tinygltf::Material& g, const std::string& name, const
         if (!(m.ior > 0) || m.ior > 10)
             w.at("KHR_materials_ior.ior").fail(cat("index of refraction must lie in (0, 10], got ", m.ior));
         m.transmittance = base;
+        if (pbr.baseColorTexture.index >= 0) notes.insert("textures on mirrors and glass are not used");
         return m;
     }
     if (pbr.metallicFactor >= kMirrorMetallic && pbr.roughnessFactor <= kMirrorRoughness) {
         m.type = MaterialType::Mirror;
         m.reflectance = base;
+        if (pbr.baseColorTexture.index >= 0) notes.insert("textures on mirrors and glass are not used");
         return m;
     }
     m.type = MaterialType::Diffuse;
@@ -75,8 +125,22 @@ Material mapMaterial(const tinygltf::Material& g, const std::string& name, const
     m.emission = factor3(g.emissiveFactor, 0.0) * strength;
     if (!(m.emission >= 0).all() || !m.emission.allFinite())
         w.at("emissiveFactor").fail("emission must be finite and not negative");
-    if (pbr.baseColorTexture.index >= 0 || g.emissiveTexture.index >= 0)
-        notes.insert("textures are not used yet: each material takes its factors alone");
+    if (pbr.baseColorTexture.index >= 0) {
+        m.reflectanceTexture = textures.get(pbr.baseColorTexture.index);
+        texCoord = pbr.baseColorTexture.texCoord;
+    }
+    if (g.emissiveTexture.index >= 0 && m.emits()) {
+        m.emissionTexture = textures.get(g.emissiveTexture.index);
+        if (m.reflectanceTexture && g.emissiveTexture.texCoord != texCoord)
+            notes.insert(
+                "an emissive texture on another coordinate set than the base colour's reads the base colour's");
+        else
+            texCoord = g.emissiveTexture.texCoord;
+    }
+    if (pbr.metallicRoughnessTexture.index >= 0 || g.normalTexture.index >= 0 || g.occlusionTexture.index >= 0)
+        notes.insert("metallic-roughness, normal and occlusion textures are not used");
+    for (const auto* info : {&pbr.baseColorTexture.extensions, &g.emissiveTexture.extensions})
+        if (info->count("KHR_texture_transform")) notes.insert("KHR_texture_transform is not applied");
     if (g.doubleSided) notes.insert("doubleSided: back faces stay black, as in our scene format");
     if (g.alphaMode != "OPAQUE") notes.insert("alphaMode " + g.alphaMode + ": surfaces are taken as opaque");
     return m;
@@ -160,7 +224,6 @@ Scene readGltfScene(const std::string& path) {
     const Where top{path, ""};
     tinygltf::Model model;
     tinygltf::TinyGLTF reader;
-    reader.SetImageLoader(skipImage, nullptr);
     std::string err, warn;
     const std::string base = std::filesystem::absolute(path).parent_path().string();
     const bool binary = bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0;
@@ -190,7 +253,8 @@ Scene readGltfScene(const std::string& path) {
 
     // Materials as the primitives use them; -1 is glTF's default material (white, metallic and
     // rough: here diffuse of reflectance 1).
-    std::map<int, int> materialOf;
+    GltfTextures textures(model, top);
+    std::map<int, std::pair<int, int>> materialOf;  // glTF index -> ours, its texture coordinate set
     std::set<std::string> materialNames;
     std::vector<std::string> renamedMaterials;  // not logged: the report names objects, not materials
     const auto material = [&](int index, const Where& w) {
@@ -209,8 +273,9 @@ Scene readGltfScene(const std::string& path) {
             notes.insert("primitives without a material take glTF's default (white, reflectance 1)");
         }
         name = uniqueName(name, materialNames, renamedMaterials);
-        scene.materials.push_back(mapMaterial(g, name, wm, notes));
-        materialOf[index] = int(scene.materials.size()) - 1;
+        int texCoord = 0;
+        scene.materials.push_back(mapMaterial(g, name, wm, notes, textures, texCoord));
+        materialOf[index] = {int(scene.materials.size()) - 1, texCoord};
         return materialOf[index];
     };
 
@@ -279,14 +344,34 @@ Scene readGltfScene(const std::string& path) {
                             wp.fail(cat("index ", indices[k + size_t(c)], " past its ", vertices, " vertices"));
                     soup.faces.push_back({int(indices[k]), int(indices[k + 1]), int(indices[k + 2])});
                 }
+                const auto [ours, texCoord] = material(prim.material, wp);
+                // Texture coordinates (the set the material's textures read), per face corner.
+                const auto uvAttribute = prim.attributes.find(cat("TEXCOORD_", texCoord));
+                if (uvAttribute != prim.attributes.end()) {
+                    std::vector<double> uv = readAccessor<double>(model, uvAttribute->second, 2, wp);
+                    const tinygltf::Accessor& a = model.accessors[size_t(uvAttribute->second)];
+                    if (a.normalized) {  // integer coordinates stand for [0, 1]
+                        const double most = a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ? 255 : 65535;
+                        for (double& x : uv) x /= most;
+                    }
+                    if (uv.size() != 2 * vertices) wp.fail(cat("TEXCOORD_", texCoord, " has not one pair per vertex"));
+                    for (const auto& f : soup.faces) {
+                        soup.faceUv.emplace_back();
+                        for (int k : f) soup.faceUv.back().emplace_back(uv[2 * size_t(k)], uv[2 * size_t(k) + 1]);
+                    }
+                } else if (scene.materials[size_t(ours)].textured()) {
+                    notes.insert(cat("a textured primitive without TEXCOORD_", texCoord, " takes its textures' mean"));
+                }
                 // A mirrored transform turns the faces' winding: put it back, so that fronts stay fronts.
-                if (world.linear().determinant() < 0)
+                if (world.linear().determinant() < 0) {
                     for (auto& f : soup.faces) std::swap(f[1], f[2]);
+                    for (auto& f : soup.faceUv) std::swap(f[1], f[2]);
+                }
                 SceneObject o;
                 std::string name = !node.name.empty() ? node.name : !mesh.name.empty() ? mesh.name : cat("node", index);
                 if (mesh.primitives.size() > 1) name += cat("#", p);
                 o.name = uniqueName(name, objectNames, renamed);
-                o.material = material(prim.material, wp);
+                o.material = ours;
                 shapeFromSoup(o, std::move(soup), path, wp);
                 scene.objects.push_back(std::move(o));
             }

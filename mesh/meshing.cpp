@@ -3,9 +3,9 @@
 // and refined with OpenMesh's longest-edge splitting until no edge exceeds the target size.
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
-#include <OpenMesh/Tools/Subdivider/Uniform/LongestEdgeT.hh>
 #include <cmath>
 #include <map>
+#include <queue>
 
 #include "core/error.h"
 #include "core/log.h"
@@ -17,6 +17,7 @@ namespace {
 
 struct Traits : public OpenMesh::DefaultTraits {
     typedef OpenMesh::Vec3d Point;
+    typedef OpenMesh::Vec2d TexCoord2D;
 };
 using PolyMesh = OpenMesh::PolyMesh_ArrayKernelT<Traits>;
 using TriMesh = OpenMesh::TriMesh_ArrayKernelT<Traits>;
@@ -25,38 +26,47 @@ OpenMesh::Vec3d om(const Vec3& v) { return OpenMesh::Vec3d(v.x(), v.y(), v.z());
 Vec3 eig(const OpenMesh::Vec3d& v) { return Vec3(v[0], v[1], v[2]); }
 
 // Copies the faces of an OpenMesh mesh into the patch set (its vertices become display vertices).
-template <typename Mesh>
-void appendMesh(const Mesh& mesh, int objectIndex, PatchSet& out) {
+// With `uvs`, `uvOf(face, vertex)` gives each corner's texture coordinates.
+template <typename Mesh, typename UvOf>
+void appendMesh(const Mesh& mesh, int objectIndex, PatchSet& out, bool uvs, const UvOf& uvOf) {
     const int base = int(out.vertices.size());
     for (auto v : mesh.vertices()) out.vertices.push_back(eig(mesh.point(v)));
     for (auto f : mesh.faces()) {
         std::array<Vec3, 4> c;
+        std::array<Vec2, 4> uv;
         std::array<int, 4> ids{};
         int n = 0;
         for (auto v : mesh.fv_range(f)) {
             PENUMBRA_CHECK_LT(n, 4);
             c[size_t(n)] = eig(mesh.point(v));
+            uv[size_t(n)] = uvs ? uvOf(f, v) : Vec2::Zero();
             ids[size_t(n)] = base + v.idx();
             ++n;
         }
         PENUMBRA_CHECK(n == 3 || n == 4);
-        if (n == 3) c[3] = c[2], ids[3] = ids[2];
-        out.add(c, n, objectIndex, ids);
+        if (n == 3) c[3] = c[2], ids[3] = ids[2], uv[3] = uv[2];
+        out.add(c, n, objectIndex, ids, uvs ? &uv : nullptr);
     }
 }
 
 int divisions(double length, double h) { return std::max(1, int(std::ceil(length / h - 1e-9))); }
 
-PolyMesh gridQuad(const std::vector<Vec3>& q, double h) {
+// Grids carry texture coordinates at their vertices, from the shape's corners' `uv` (zero without).
+PolyMesh gridQuad(const std::vector<Vec3>& q, double h, const std::vector<Vec2>& uv = {}) {
     const int nu = divisions(std::max((q[1] - q[0]).norm(), (q[2] - q[3]).norm()), h);
     const int nv = divisions(std::max((q[3] - q[0]).norm(), (q[2] - q[1]).norm()), h);
     PolyMesh mesh;
+    mesh.request_vertex_texcoords2D();
     std::vector<PolyMesh::VertexHandle> vh;
     for (int j = 0; j <= nv; ++j)
         for (int i = 0; i <= nu; ++i) {
             const double u = double(i) / nu, v = double(j) / nv;
             vh.push_back(
                 mesh.add_vertex(om((1 - u) * (1 - v) * q[0] + u * (1 - v) * q[1] + u * v * q[2] + (1 - u) * v * q[3])));
+            if (uv.size() == 4) {
+                const Vec2 t = (1 - u) * (1 - v) * uv[0] + u * (1 - v) * uv[1] + u * v * uv[2] + (1 - u) * v * uv[3];
+                mesh.set_texcoord2D(vh.back(), OpenMesh::Vec2d(t.x(), t.y()));
+            }
         }
     for (int j = 0; j < nv; ++j)
         for (int i = 0; i < nu; ++i) {
@@ -66,16 +76,22 @@ PolyMesh gridQuad(const std::vector<Vec3>& q, double h) {
     return mesh;
 }
 
-PolyMesh gridTriangle(const std::vector<Vec3>& t, double h) {
+PolyMesh gridTriangle(const std::vector<Vec3>& t, double h, const std::vector<Vec2>& uv = {}) {
     const double longest = std::max({(t[1] - t[0]).norm(), (t[2] - t[1]).norm(), (t[0] - t[2]).norm()});
     const int k = divisions(longest, h);
     PolyMesh mesh;
+    mesh.request_vertex_texcoords2D();
     // Vertex (i, j) at t0 + i/k (t1 - t0) + j/k (t2 - t0), i + j <= k.
     std::vector<std::vector<PolyMesh::VertexHandle>> vh(size_t(k + 1));
     for (int i = 0; i <= k; ++i)
-        for (int j = 0; j <= k - i; ++j)
+        for (int j = 0; j <= k - i; ++j) {
             vh[size_t(i)].push_back(
                 mesh.add_vertex(om(t[0] + (double(i) / k) * (t[1] - t[0]) + (double(j) / k) * (t[2] - t[0]))));
+            if (uv.size() == 3) {
+                const Vec2 c = uv[0] + (double(i) / k) * (uv[1] - uv[0]) + (double(j) / k) * (uv[2] - uv[0]);
+                mesh.set_texcoord2D(vh[size_t(i)].back(), OpenMesh::Vec2d(c.x(), c.y()));
+            }
+        }
     for (int i = 0; i < k; ++i)
         for (int j = 0; j < k - i; ++j) {
             mesh.add_face(vh[size_t(i)][size_t(j)], vh[size_t(i + 1)][size_t(j)], vh[size_t(i)][size_t(j + 1)]);
@@ -163,28 +179,72 @@ PolyMesh cubeSphere(const SceneObject& o, double h) {
     return mesh;
 }
 
-TriMesh refinedSoup(const PolygonSoup& soup, double h, const std::string& name) {
+// A soup's triangles, each with its corners' points and texture coordinates: what a refined face
+// lies in.
+struct SourceTriangle {
+    std::array<Vec3, 3> p;
+    std::array<Vec2, 3> uv;
+    // Texture coordinates at a point of the triangle's plane (barycentric).
+    Vec2 uvAt(const Vec3& x) const {
+        const Vec3 e1 = p[1] - p[0], e2 = p[2] - p[0], d = x - p[0];
+        const double a = e1.dot(e1), b = e1.dot(e2), c = e2.dot(e2), det = a * c - b * b;
+        if (!(det > 0)) return uv[0];
+        const double s = (c * d.dot(e1) - b * d.dot(e2)) / det, t = (a * d.dot(e2) - b * d.dot(e1)) / det;
+        return uv[0] + s * (uv[1] - uv[0]) + t * (uv[2] - uv[0]);
+    }
+};
+
+// The soup fan-triangulated and refined by longest-edge splitting until no edge exceeds h sqrt(2)
+// (OpenMesh's LongestEdgeT, its queue kept here, splitting with split_copy so that each new face
+// keeps the index of the soup triangle it lies in, `source`).
+TriMesh refinedSoup(const PolygonSoup& soup, double h, const std::string& name, std::vector<SourceTriangle>& sources,
+                    OpenMesh::FPropHandleT<int>& source) {
     TriMesh mesh;
+    mesh.add_property(source);
     std::vector<TriMesh::VertexHandle> vh;
     for (const auto& v : soup.vertices) vh.push_back(mesh.add_vertex(om(v)));
     size_t skipped = 0;
-    for (const auto& f : soup.faces)
+    for (size_t fi = 0; fi < soup.faces.size(); ++fi) {
+        const auto& f = soup.faces[fi];
         for (size_t k = 1; k + 1 < f.size(); ++k) {  // fan triangulation of convex polygons
             const Vec3& a = soup.vertices[size_t(f[0])];
             const Vec3& b = soup.vertices[size_t(f[k])];
             const Vec3& c = soup.vertices[size_t(f[k + 1])];
             const double edge = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+            TriMesh::FaceHandle added;
             if ((b - a).cross(c - a).norm() <= 1e-12 * edge * edge ||
-                !mesh.add_face(vh[size_t(f[0])], vh[size_t(f[k])], vh[size_t(f[k + 1])]).is_valid())
+                !(added = mesh.add_face(vh[size_t(f[0])], vh[size_t(f[k])], vh[size_t(f[k + 1])])).is_valid()) {
                 ++skipped;
+                continue;
+            }
+            SourceTriangle t{{a, b, c}, {Vec2::Zero(), Vec2::Zero(), Vec2::Zero()}};
+            if (!soup.faceUv.empty()) t.uv = {soup.faceUv[fi][0], soup.faceUv[fi][k], soup.faceUv[fi][k + 1]};
+            mesh.property(source, added) = int(sources.size());
+            sources.push_back(t);
         }
+    }
     if (skipped) logWarning("object '", name, "': skipped ", skipped, " degenerate or non-manifold mesh faces");
     if (mesh.n_faces() == 0) throw Error(cat("object '", name, "': its mesh has no usable faces"));
-    OpenMesh::Subdivider::Uniform::LongestEdgeT<TriMesh, double> split;
-    split.set_max_edge_length(h * std::sqrt(2.0));
-    split.attach(mesh);
-    split(1);
-    split.detach();
+    const double longest = h * std::sqrt(2.0), longestSquared = longest * longest;
+    using Queued = std::pair<TriMesh::EdgeHandle, double>;
+    const auto shorter = [](const Queued& a, const Queued& b) { return a.second < b.second; };
+    std::priority_queue<Queued, std::vector<Queued>, decltype(shorter)> queue(shorter);
+    const auto lengthSquared = [&](TriMesh::HalfedgeHandle he) {
+        return (mesh.point(mesh.to_vertex_handle(he)) - mesh.point(mesh.from_vertex_handle(he))).sqrnorm();
+    };
+    for (auto e : mesh.edges())
+        if (const double l = lengthSquared(mesh.halfedge_handle(e, 0)); l > longestSquared) queue.push({e, l});
+    while (!queue.empty()) {
+        const Queued top = queue.top();
+        queue.pop();
+        if (top.second < longestSquared) break;
+        const auto he = mesh.halfedge_handle(top.first, 0);
+        const auto middle =
+            mesh.add_vertex(0.5 * (mesh.point(mesh.to_vertex_handle(he)) + mesh.point(mesh.from_vertex_handle(he))));
+        mesh.split_copy(top.first, middle);
+        for (auto out : mesh.voh_range(middle))
+            if (const double l = lengthSquared(out); l > longestSquared) queue.push({mesh.edge_handle(out), l});
+    }
     mesh.garbage_collection();
     return mesh;
 }
@@ -215,11 +275,47 @@ std::vector<std::vector<size_t>> PatchSet::byObject(size_t objects) const {
     return members;
 }
 
-void PatchSet::add(const std::array<Vec3, 4>& c, int count, int objectIndex, const std::array<int, 4>& vertexIds) {
+Vec2 PatchSet::uvAt(size_t i, double u, double v) const {
+    const auto& t = uv[i];
+    if (isTriangle(i)) return t[0] + u * ((1 - v) * (t[1] - t[0]) + v * (t[2] - t[0]));
+    return (1 - u) * (1 - v) * t[0] + u * (1 - v) * t[1] + u * v * t[2] + (1 - u) * v * t[3];
+}
+
+Vec2 PatchSet::uvAtHit(size_t i, double u, double v) const {
+    const auto& t = uv[i];
+    // Embree's quad: (0, 0) at corner 0, u towards corner 1, v towards corner 3; a triangle (corner
+    // 3 = corner 2) is its first half, with barycentric u and v.
+    if (isTriangle(i)) return t[0] + u * (t[1] - t[0]) + v * (t[2] - t[0]);
+    return (1 - u) * (1 - v) * t[0] + u * (1 - v) * t[1] + u * v * t[2] + (1 - u) * v * t[3];
+}
+
+Vec2 PatchSet::uvAtPoint(size_t i, const Vec3& x) const {
+    // Barycentric (s, t) of x in the triangle a, b, d: x = a + s (b - a) + t (d - a).
+    const auto barycentric = [&x](const Vec3& a, const Vec3& b, const Vec3& d) {
+        const Vec3 e1 = b - a, e2 = d - a, r = x - a;
+        const double p = e1.dot(e1), q = e1.dot(e2), w = e2.dot(e2), det = p * w - q * q;
+        if (!(det > 0)) return Vec2(Vec2::Zero());
+        return Vec2((w * r.dot(e1) - q * r.dot(e2)) / det, (p * r.dot(e2) - q * r.dot(e1)) / det);
+    };
+    const auto& c = corners[i];
+    if (isTriangle(i)) {
+        const Vec2 b = barycentric(c[0], c[1], c[2]);
+        return uvAtHit(i, b.x(), b.y());
+    }
+    const Vec2 first = barycentric(c[0], c[1], c[3]);
+    if (first.sum() <= 1) return uvAtHit(i, first.x(), first.y());
+    const Vec2 second = barycentric(c[2], c[3], c[1]);
+    return uvAtHit(i, 1 - second.x(), 1 - second.y());
+}
+
+void PatchSet::add(const std::array<Vec3, 4>& c, int count, int objectIndex, const std::array<int, 4>& vertexIds,
+                   const std::array<Vec2, 4>* cornerUv) {
     const Vec3 vectorArea =
         count == 3 ? 0.5 * (c[1] - c[0]).cross(c[2] - c[0]) : 0.5 * (c[2] - c[0]).cross(c[3] - c[1]);
     const double a = vectorArea.norm();
     if (!(a > 0)) return;  // a degenerate sub-face (only from mesh refinement) carries no light
+    PENUMBRA_CHECK(cornerUv ? uv.size() == area.size() : uv.empty());
+    if (cornerUv) uv.push_back(*cornerUv);
     corners.push_back(c);
     cornerCount.push_back(uint8_t(count));
     normal.push_back(vectorArea / a);
@@ -308,22 +404,41 @@ PatchSet meshScene(const Scene& scene, const MeshingOptions& options) {
     }
     const bool coarseLamps = emitting < kSmallSourceShare * area && lampPatches > 64;
     PatchSet patches;
+    // Texture coordinates at the patches' corners where the scene has textures.
+    const bool uvs = scene.hasTextures();
     for (size_t i = 0; i < scene.objects.size(); ++i) {
         const SceneObject& o = scene.objects[i];
         const double size = coarseLamps && lamp[i] ? std::max(h, std::sqrt(objectArea(o))) : h;
+        const auto atVertex = [](const PolyMesh& mesh) {
+            return [&mesh](PolyMesh::FaceHandle, PolyMesh::VertexHandle v) {
+                const OpenMesh::Vec2d t = mesh.texcoord2D(v);
+                return Vec2(t[0], t[1]);
+            };
+        };
         switch (o.type) {
-            case ShapeType::Quad:
-                appendMesh(gridQuad(o.vertices, size), int(i), patches);
+            case ShapeType::Quad: {
+                const PolyMesh mesh = gridQuad(o.vertices, size, o.uv);
+                appendMesh(mesh, int(i), patches, uvs, atVertex(mesh));
                 break;
-            case ShapeType::Triangle:
-                appendMesh(gridTriangle(o.vertices, size), int(i), patches);
+            }
+            case ShapeType::Triangle: {
+                const PolyMesh mesh = gridTriangle(o.vertices, size, o.uv);
+                appendMesh(mesh, int(i), patches, uvs, atVertex(mesh));
                 break;
+            }
             case ShapeType::Sphere:
-                appendMesh(cubeSphere(o, h), int(i), patches);
+                appendMesh(cubeSphere(o, h), int(i), patches, uvs,
+                           [](PolyMesh::FaceHandle, PolyMesh::VertexHandle) { return Vec2(Vec2::Zero()); });
                 break;
-            case ShapeType::Mesh:
-                appendMesh(refinedSoup(o.mesh, h, o.name), int(i), patches);
+            case ShapeType::Mesh: {
+                std::vector<SourceTriangle> sources;
+                OpenMesh::FPropHandleT<int> source;
+                const TriMesh mesh = refinedSoup(o.mesh, h, o.name, sources, source);
+                appendMesh(mesh, int(i), patches, uvs, [&](TriMesh::FaceHandle f, TriMesh::VertexHandle v) {
+                    return sources[size_t(mesh.property(source, f))].uvAt(eig(mesh.point(v)));
+                });
                 break;
+            }
         }
     }
     const int asked = options.patchSize > 0 ? 0 : patchTarget(scene, options);

@@ -10,6 +10,7 @@
 
 #include "core/log.h"
 #include "mesh/scene_detail.h"
+#include "mesh/texture.h"
 
 namespace penumbra {
 namespace {
@@ -18,8 +19,19 @@ using namespace scene_detail;
 
 // MTL -> ours (docs/import.md): illum 3, or Ns >= 900 with some Ks, is a mirror tinted by Ks; illum
 // 4, 6 or 7 a dielectric of index Ni; anything else diffuse of reflectance Kd, emitting Ke.
-Material mapMaterial(const tinyobj::material_t& t, const std::string& name, const Where& w,
-                     std::set<std::string>& notes) {
+// A map_Kd or map_Ke texture, named relative to the OBJ file (its -clamp option kept).
+std::shared_ptr<const Texture> objTexture(const std::string& file, const tinyobj::texture_option_t& option,
+                                          const std::string& directory, const Where& w) {
+    const Wrap wrap = option.clamp ? Wrap::Clamp : Wrap::Repeat;
+    try {
+        return readTextureFile((std::filesystem::path(directory) / file).string(), wrap, wrap);
+    } catch (const Error& e) {
+        w.fail(e.what());
+    }
+}
+
+Material mapMaterial(const tinyobj::material_t& t, const std::string& name, const std::string& directory,
+                     const Where& w, std::set<std::string>& notes) {
     Material m;
     m.name = name;
     const auto rgb = [](const tinyobj::real_t* v) { return Rgb(double(v[0]), double(v[1]), double(v[2])); };
@@ -46,8 +58,16 @@ Material mapMaterial(const tinyobj::material_t& t, const std::string& name, cons
     if (!(m.emission >= 0).all() || !m.emission.allFinite())
         w.at("Ke").fail("emission must be finite and not negative");
     if (ks.maxCoeff() > 0) notes.insert("the specular colour Ks of diffuse materials is left out");
-    if (!t.diffuse_texname.empty() || !t.emissive_texname.empty())
-        notes.insert("textures (map_Kd, map_Ke) are not used yet: each material takes its colours");
+    if (!t.diffuse_texname.empty()) {
+        m.reflectanceTexture = objTexture(t.diffuse_texname, t.diffuse_texopt, directory, w.at("map_Kd"));
+        if (m.reflectanceTexture->maximum() > 1)
+            w.at("map_Kd").fail(
+                cat("a reflectance texture's values must lie in [0, 1], it holds ", m.reflectanceTexture->maximum()));
+    }
+    if (!t.emissive_texname.empty() && m.emits())
+        m.emissionTexture = objTexture(t.emissive_texname, t.emissive_texopt, directory, w.at("map_Ke"));
+    if (!t.bump_texname.empty() || !t.normal_texname.empty() || !t.specular_texname.empty())
+        notes.insert("bump, normal and specular maps are not used");
     return m;
 }
 
@@ -75,7 +95,7 @@ Scene readObjScene(const std::string& path) {
     const std::vector<tinyobj::material_t>& mtl = reader.GetMaterials();
     for (size_t k = 0; k < mtl.size(); ++k) {
         const std::string name = mtl[k].name.empty() ? cat("material", k) : mtl[k].name;
-        scene.materials.push_back(mapMaterial(mtl[k], name, top.at("newmtl " + name), notes));
+        scene.materials.push_back(mapMaterial(mtl[k], name, config.mtl_search_path, top.at("newmtl " + name), notes));
         const std::string text = cat(mtl[k].name, mtl[k].illum, mtl[k].ior, mtl[k].shininess);
         scene.fingerprint = fnv1a(text, scene.fingerprint);
     }
@@ -110,8 +130,13 @@ Scene readObjScene(const std::string& path) {
             const int material = f < shape.mesh.material_ids.size() ? shape.mesh.material_ids[f] : -1;
             PolygonSoup& soup = byMaterial[material];
             std::vector<int> face;
+            std::vector<Vec2> uv;
             for (int k = 0; k < count; ++k) {
                 const int v = shape.mesh.indices[at + size_t(k)].vertex_index;
+                const int t = shape.mesh.indices[at + size_t(k)].texcoord_index;
+                if (t >= 0 && 2 * size_t(t) + 1 < attrib.texcoords.size())  // OBJ's v runs up the image
+                    uv.emplace_back(double(attrib.texcoords[2 * size_t(t)]),
+                                    1 - double(attrib.texcoords[2 * size_t(t) + 1]));
                 if (v < 0 || size_t(v) >= vertices)
                     top.at(cat("'", shape.name, "'")).fail(cat("a face names vertex ", v + 1, " of ", vertices));
                 auto [it, fresh] = vertexOf[material].emplace(v, int(soup.vertices.size()));
@@ -122,8 +147,18 @@ Scene readObjScene(const std::string& path) {
                 face.push_back(it->second);
             }
             at += size_t(count);
-            if (count >= 3) soup.faces.push_back(std::move(face));
+            if (count >= 3) {
+                soup.faces.push_back(std::move(face));
+                soup.faceUv.push_back(std::move(uv));
+            }
         }
+        // Texture coordinates only where every face of the part has them.
+        for (auto& [material, soup] : byMaterial)
+            for (const auto& uv : soup.faceUv)
+                if (uv.size() != soup.faces[size_t(&uv - soup.faceUv.data())].size()) {
+                    soup.faceUv.clear();
+                    break;
+                }
         for (auto& [material, soup] : byMaterial) {
             if (soup.faces.empty()) continue;
             SceneObject o;

@@ -24,6 +24,9 @@ struct PatchSet {
     // surface. Vertices are never shared between objects.
     std::vector<std::array<int, 4>> cornerVertex;
     std::vector<Vec3> vertices;
+    // Texture coordinates of each patch's corners (mesh/texture.h), where the scene has textures;
+    // else empty. Zero on objects without coordinates (SceneObject::hasUv).
+    std::vector<std::array<Vec2, 4>> uv;
 
     size_t size() const { return area.size(); }
     bool isTriangle(size_t i) const { return cornerCount[i] == 3; }
@@ -32,8 +35,17 @@ struct PatchSet {
     Vec3 pointAt(size_t i, double u, double v) const;
     // |dP/du x dP/dv| at (u, v): the area element of pointAt.
     double jacobian(size_t i, double u, double v) const;
-    // Adds one patch and its display vertices (by index into `vertices`).
-    void add(const std::array<Vec3, 4>& c, int count, int objectIndex, const std::array<int, 4>& vertexIds);
+    // Adds one patch and its display vertices (by index into `vertices`), and with `cornerUv` its
+    // texture coordinates (given for every patch or for none).
+    void add(const std::array<Vec3, 4>& c, int count, int objectIndex, const std::array<int, 4>& vertexIds,
+             const std::array<Vec2, 4>* cornerUv = nullptr);
+    bool hasUv() const { return !uv.empty(); }
+    // Texture coordinates at parameters (u, v), as pointAt places the point (needs hasUv()).
+    Vec2 uvAt(size_t i, double u, double v) const;
+    // Texture coordinates at a point of the patch (Embree's quad parameters `u`, `v` of a hit on it).
+    Vec2 uvAtHit(size_t i, double u, double v) const;
+    // Texture coordinates at a point on patch i, as Embree's triangles of it hold the point.
+    Vec2 uvAtPoint(size_t i, const Vec3& x) const;
     // Each object's patches, in order, indexed by object (as many as `objects`, or one past the
     // largest object index if that is more).
     std::vector<std::vector<size_t>> byObject(size_t objects = 0) const;
@@ -49,6 +61,13 @@ struct MeshingOptions {
     // converged reference 0.875 times a solve over 8 seeds, not 1.75, for stages of 6.8-7.9 s.
     int patchesPerObject = 4;
 };
+
+// Patch i's mean diffuse reflectance and mean emitted radiance over its area: the material's
+// factors, times its textures integrated over the patch (a midpoint rule in the patch's parameters,
+// weighted by the area element, with samples no farther apart than half a texel, up to 64 x 64), or
+// times their means where the patch has no texture coordinates. Zero for mirrors and glass.
+Rgb meanReflectance(const Scene& scene, const PatchSet& patches, size_t i);
+Rgb meanEmission(const Scene& scene, const PatchSet& patches, size_t i);
 
 // The number of patches `options` ask of the scene: targetPatches, and at least patchesPerObject
 // for each of its objects.

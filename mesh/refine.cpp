@@ -95,7 +95,7 @@ PatchSet shareVertices(const PatchSet& p) {
             if (added) out.vertices.push_back(x);
             ids[size_t(k)] = it->second;
         }
-        out.add(p.corners[i], p.cornerCount[i], p.object[i], ids);
+        out.add(p.corners[i], p.cornerCount[i], p.object[i], ids, p.hasUv() ? &p.uv[i] : nullptr);
     }
     return out;
 }
@@ -108,6 +108,19 @@ void childPolygons(const PatchSet& p, size_t i, std::array<std::array<Vec3, 4>, 
     } else {
         const Vec3 ab = midpoint(c[0], c[1]), bc = midpoint(c[1], c[2]), cd = midpoint(c[2], c[3]),
                    da = midpoint(c[3], c[0]), e = p.pointAt(i, 0.5, 0.5);
+        out = {{{c[0], ab, e, da}, {ab, c[1], bc, e}, {e, bc, c[2], cd}, {da, e, cd, c[3]}}};
+    }
+}
+
+void childUvs(const PatchSet& p, size_t i, std::array<std::array<Vec2, 4>, 4>& out) {
+    const auto& c = p.uv[i];
+    const auto mid = [](const Vec2& a, const Vec2& b) { return Vec2(0.5 * (a + b)); };
+    if (p.isTriangle(i)) {
+        const Vec2 ab = mid(c[0], c[1]), bc = mid(c[1], c[2]), ca = mid(c[2], c[0]);
+        out = {{{c[0], ab, ca, ca}, {ab, c[1], bc, bc}, {ca, bc, c[2], c[2]}, {ab, bc, ca, ca}}};
+    } else {
+        const Vec2 ab = mid(c[0], c[1]), bc = mid(c[1], c[2]), cd = mid(c[2], c[3]), da = mid(c[3], c[0]),
+                   e = p.uvAt(i, 0.5, 0.5);
         out = {{{c[0], ab, e, da}, {ab, c[1], bc, e}, {e, bc, c[2], cd}, {da, e, cd, c[3]}}};
     }
 }
@@ -146,15 +159,17 @@ PatchSet splitPatches(const PatchSet& p, std::vector<char>& split) {
     };
     for (size_t i = 0; i < p.size(); ++i) {
         if (!split[i]) {
-            out.add(p.corners[i], p.cornerCount[i], p.object[i], p.cornerVertex[i]);
+            out.add(p.corners[i], p.cornerCount[i], p.object[i], p.cornerVertex[i], p.hasUv() ? &p.uv[i] : nullptr);
             continue;
         }
         std::array<std::array<Vec3, 4>, 4> children;
+        std::array<std::array<Vec2, 4>, 4> uvs;
         childPolygons(p, i, children);
-        for (const auto& c : children) {
+        if (p.hasUv()) childUvs(p, i, uvs);
+        for (size_t k = 0; k < 4; ++k) {
             std::array<int, 4> ids;
-            for (int k = 0; k < 4; ++k) ids[size_t(k)] = vertexAt(p.object[i], c[size_t(k)]);
-            out.add(c, p.cornerCount[i], p.object[i], ids);
+            for (size_t c = 0; c < 4; ++c) ids[c] = vertexAt(p.object[i], children[k][c]);
+            out.add(children[k], p.cornerCount[i], p.object[i], ids, p.hasUv() ? &uvs[k] : nullptr);
         }
     }
     return out;

@@ -38,6 +38,9 @@ void joinHangingVertices(const PatchSet& patches, const std::vector<std::vector<
 // child last). Triangles repeat their last corner, as in PatchSet.
 void childPolygons(const PatchSet& patches, size_t i, std::array<std::array<Vec3, 4>, 4>& out);
 
+// The texture coordinates of childPolygons' corners, in the same order (needs patches.hasUv()).
+void childUvs(const PatchSet& patches, size_t i, std::array<std::array<Vec2, 4>, 4>& out);
+
 // The same patches with display vertices shared wherever patches of one object meet at a corner
 // (patches made one by one, as the hierarchy's leaves, come with none).
 PatchSet shareVertices(const PatchSet& patches);

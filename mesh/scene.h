@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/math.h"
+#include "mesh/texture.h"
 
 namespace penumbra {
 
@@ -20,7 +21,20 @@ struct Material {
     Rgb emission = Rgb::Zero();       // radiance L_e, W sr^-1 m^-2, front face only
     double ior = 1.5;                 // dielectric only
     Rgb transmittance = Rgb::Ones();  // dielectric only
+    // Diffuse only: textures multiplying `reflectance` and `emission` (mesh/texture.h), or null.
+    std::shared_ptr<const Texture> reflectanceTexture, emissionTexture;
     bool emits() const { return (emission > 0).any(); }
+    bool textured() const { return reflectanceTexture || emissionTexture; }
+    // Reflectance and emission at texture coordinates `uv`; without coordinates (null), the
+    // textures' means.
+    Rgb reflectanceAt(const Vec2* uv) const {
+        if (!reflectanceTexture) return reflectance;
+        return reflectance * (uv ? reflectanceTexture->at(*uv) : reflectanceTexture->mean());
+    }
+    Rgb emissionAt(const Vec2* uv) const {
+        if (!emissionTexture) return emission;
+        return emission * (uv ? emissionTexture->at(*uv) : emissionTexture->mean());
+    }
 };
 
 // Emitters covering less than this share of the surface are small sources: the solve takes their
@@ -33,6 +47,8 @@ enum class ShapeType { Quad, Triangle, Mesh, Sphere };
 struct PolygonSoup {
     std::vector<Vec3> vertices;
     std::vector<std::vector<int>> faces;
+    // Texture coordinates of each face's corners, parallel to `faces`; empty when the file has none.
+    std::vector<std::vector<Vec2>> faceUv;
 };
 
 struct SceneObject {
@@ -40,12 +56,19 @@ struct SceneObject {
     ShapeType type = ShapeType::Quad;
     int material = -1;
     std::vector<Vec3> vertices;  // quad (4) or triangle (3), in metres, world space
+    // Quad or triangle: texture coordinates of `vertices` (our JSON scenes default to the unit
+    // square: (0, 0) at vertex 0, u towards vertex 1, v towards the last); empty when there are none.
+    std::vector<Vec2> uv;
     PolygonSoup mesh;            // mesh: vertices in metres, world space
     std::string file;            // mesh: the resolved path
     Vec3 center = Vec3::Zero();  // sphere: local centre (scene units)
     double radius = 0;           // sphere: local radius (scene units)
     // Local-to-world map in metres (scene units -> metres included). Applied to spheres at meshing.
     Eigen::Affine3d toWorld = Eigen::Affine3d::Identity();
+    // Whether the object carries texture coordinates (spheres never do).
+    bool hasUv() const {
+        return type == ShapeType::Mesh ? !mesh.faceUv.empty() : !uv.empty() && type != ShapeType::Sphere;
+    }
 };
 
 struct Camera {
@@ -83,6 +106,7 @@ struct Scene {
     double squareMetresPerUnit() const { return metresPerUnit * metresPerUnit; }
     bool hasEmitter() const;
     bool hasSpecular() const;
+    bool hasTextures() const;
     const Material& materialOf(const SceneObject& o) const { return materials[size_t(o.material)]; }
 };
 

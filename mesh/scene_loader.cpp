@@ -167,13 +167,31 @@ void shapeFromSoup(SceneObject& o, PolygonSoup soup, const std::string& file, co
             quad.clear();
         }
     }
+    // Texture coordinates of the shape's corners: those of the soup's corner at the same point.
+    const auto cornerUv = [&](const std::vector<Vec3>& shape) {
+        std::vector<Vec2> uv;
+        if (soup.faceUv.empty()) return uv;
+        for (const Vec3& p : shape) {
+            const size_t before = uv.size();
+            for (size_t f = 0; f < soup.faces.size() && uv.size() == before; ++f)
+                for (size_t k = 0; k < soup.faces[f].size(); ++k)
+                    if (soup.vertices[size_t(soup.faces[f][k])] == p) {
+                        uv.push_back(soup.faceUv[f][k]);
+                        break;
+                    }
+        }
+        if (uv.size() != shape.size()) uv.clear();
+        return uv;
+    };
     if (oneFace && corners.size() == 3) {
         o.type = ShapeType::Triangle;
         o.vertices = corners;
         checkTriangle(o.vertices, w);
+        o.uv = cornerUv(o.vertices);
     } else if (!quad.empty()) {
         o.type = ShapeType::Quad;
         o.vertices = quad;
+        o.uv = cornerUv(o.vertices);
     } else {
         o.type = ShapeType::Mesh;
         o.mesh = std::move(soup);
@@ -297,7 +315,30 @@ Rgb unitRgb(const Json& j, const Where& w) {
     return v;
 }
 
-Material parseMaterial(const std::string& name, const Json& j, const Where& w) {
+// A material's texture file (mesh/texture.h), named relative to the scene file; its texels join the
+// scene's fingerprint. Reflectance textures must hold values in [0, 1].
+std::shared_ptr<const Texture> parseTexture(const Json& j, const std::filesystem::path& sceneDir, bool reflectance,
+                                            uint64_t& fingerprint, const Where& w) {
+    if (!j.is_string() || j.get<std::string>().empty()) w.fail("expected the path of an image file");
+    const std::string file = (sceneDir / j.get<std::string>()).string();
+    std::shared_ptr<const Texture> t;
+    try {
+        t = readTextureFile(file);
+    } catch (const Error& e) {
+        w.fail(e.what());
+    }
+    if (reflectance && t->maximum() > 1)
+        w.fail(cat(file, ": a reflectance texture's values must lie in [0, 1], it holds ", t->maximum()));
+    for (int y = 0; y < t->height(); ++y)
+        for (int x = 0; x < t->width(); ++x) {
+            const Rgb v = t->texel(x, y);
+            fingerprint = fnv1a(std::string(reinterpret_cast<const char*>(v.data()), sizeof(double) * 3), fingerprint);
+        }
+    return t;
+}
+
+Material parseMaterial(const std::string& name, const Json& j, const std::filesystem::path& sceneDir,
+                       uint64_t& fingerprint, const Where& w) {
     Material m;
     m.name = name;
     if (!j.is_object())
@@ -307,9 +348,21 @@ Material parseMaterial(const std::string& name, const Json& j, const Where& w) {
     if (!type.is_string()) w.at("type").fail("expected a string");
     const std::string t = type.get<std::string>();
     if (t == "diffuse") {
-        checkKeys(j, w, {"type", "reflectance", "emission"});
+        checkKeys(j, w, {"type", "reflectance", "emission", "reflectance_texture", "emission_texture"});
         m.type = MaterialType::Diffuse;
-        m.reflectance = unitRgb(require(j, "reflectance", w), w.at("reflectance"));
+        if (j.contains("reflectance_texture"))
+            m.reflectanceTexture =
+                parseTexture(j["reflectance_texture"], sceneDir, true, fingerprint, w.at("reflectance_texture"));
+        // With a texture the factor is optional (1: the texture alone).
+        m.reflectance = m.reflectanceTexture && !j.contains("reflectance")
+                            ? Rgb::Ones()
+                            : unitRgb(require(j, "reflectance", w), w.at("reflectance"));
+        if (j.contains("emission_texture")) {
+            if (!j.contains("emission"))
+                w.at("emission_texture").fail("needs \"emission\", the radiance it multiplies");
+            m.emissionTexture =
+                parseTexture(j["emission_texture"], sceneDir, false, fingerprint, w.at("emission_texture"));
+        }
         if (j.contains("emission")) {
             m.emission = rgb(j["emission"], w.at("emission"));
             if ((m.emission < 0).any()) w.at("emission").fail("emission radiance must not be negative");
@@ -334,6 +387,18 @@ Material parseMaterial(const std::string& name, const Json& j, const Where& w) {
         w.at("type").fail(cat("unknown material type '", t, "' (expected diffuse, mirror or dielectric)"));
     }
     return m;
+}
+
+// "uv": [[u, v], ...], one pair per vertex.
+std::vector<Vec2> textureCoordinates(const Json& j, size_t count, const Where& w) {
+    if (!j.is_array() || j.size() != count) w.fail(cat("expected ", count, " [u, v] pairs, one per vertex"));
+    std::vector<Vec2> out;
+    for (size_t k = 0; k < count; ++k) {
+        const Json& p = j[k];
+        if (!p.is_array() || p.size() != 2) w.index(k).fail("expected [u, v]");
+        out.emplace_back(number(p[0], w.index(k).index(0)), number(p[1], w.index(k).index(1)));
+    }
+    return out;
 }
 
 Eigen::Affine3d parseTransform(const Json& j, const Where& w) {
@@ -421,6 +486,12 @@ bool Scene::hasSpecular() const {
     return false;
 }
 
+bool Scene::hasTextures() const {
+    for (const auto& o : objects)
+        if (materialOf(o).textured()) return true;
+    return false;
+}
+
 Camera parseCamera(const std::string& text, const Scene& scene, const std::string& where) {
     Json j;
     try {
@@ -433,9 +504,10 @@ Camera parseCamera(const std::string& text, const Scene& scene, const std::strin
     return parseCameraJson(j, scene, Where{where, ""});
 }
 
-Scene loadScene(const std::string& path) {
-    if (isGltfPath(path)) return loadGltfScene(path);
-    if (isObjPath(path)) return loadObjScene(path);
+namespace {
+
+// Our JSON scene file (shared/CONTRACT.md).
+Scene loadJsonScene(const std::string& path) {
     const std::string text = readFile(path, "scene file");
     Json root;
     try {
@@ -486,14 +558,20 @@ Scene loadScene(const std::string& path) {
 
     const Json& mats = require(root, "materials", top);
     if (!mats.is_object()) top.at("materials").fail("expected an object mapping names to materials");
+    const std::filesystem::path sceneDir = std::filesystem::path(path).parent_path();
     for (const auto& item : mats.items()) {
         if (ignoredKey(item.key())) continue;
-        scene.materials.push_back(parseMaterial(item.key(), item.value(), top.at("materials").at(item.key())));
+        scene.materials.push_back(
+            parseMaterial(item.key(), item.value(), sceneDir, scene.fingerprint, top.at("materials").at(item.key())));
     }
+    for (const Material& m : scene.materials)
+        if (m.textured()) {  // the textures' texels, already in the fingerprint
+            scene.fileFingerprint = fnv1a(std::to_string(scene.fingerprint), scene.fileFingerprint);
+            break;
+        }
 
     const Json& objs = require(root, "objects", top);
     if (!objs.is_array()) top.at("objects").fail("expected an array of objects");
-    const std::filesystem::path sceneDir = std::filesystem::path(path).parent_path();
     std::set<std::string> names;
     for (size_t i = 0; i < objs.size(); ++i) {
         const Json& j = objs[i];
@@ -528,15 +606,19 @@ Scene loadScene(const std::string& path) {
         o.toWorld = scale * (j.contains("transform") ? parseTransform(j["transform"], w.at("transform"))
                                                      : Eigen::Affine3d::Identity());
         if (t == "quad") {
-            checkKeys(j, w, {"name", "type", "material", "vertices", "transform"});
+            checkKeys(j, w, {"name", "type", "material", "vertices", "transform", "uv"});
             o.type = ShapeType::Quad;
             o.vertices = polygon(require(j, "vertices", w), 4, o.toWorld, scene.metresPerUnit, w.at("vertices"));
             checkQuad(o.vertices, w.at("vertices"));
+            o.uv = j.contains("uv") ? textureCoordinates(j["uv"], 4, w.at("uv"))
+                                    : std::vector<Vec2>{Vec2(0, 0), Vec2(1, 0), Vec2(1, 1), Vec2(0, 1)};
         } else if (t == "triangle") {
-            checkKeys(j, w, {"name", "type", "material", "vertices", "transform"});
+            checkKeys(j, w, {"name", "type", "material", "vertices", "transform", "uv"});
             o.type = ShapeType::Triangle;
             o.vertices = polygon(require(j, "vertices", w), 3, o.toWorld, scene.metresPerUnit, w.at("vertices"));
             checkTriangle(o.vertices, w.at("vertices"));
+            o.uv = j.contains("uv") ? textureCoordinates(j["uv"], 3, w.at("uv"))
+                                    : std::vector<Vec2>{Vec2(0, 0), Vec2(1, 0), Vec2(0, 1)};
         } else if (t == "sphere") {
             checkKeys(j, w, {"name", "type", "material", "center", "radius", "transform"});
             o.type = ShapeType::Sphere;
@@ -585,12 +667,17 @@ Scene loadScene(const std::string& path) {
                     scene.objects.push_back(std::move(part));
                 }
                 fingerprint();
+                if (parts.hasTextures())
+                    scene.fingerprint = fnv1a(std::to_string(parts.fingerprint), scene.fingerprint);
                 continue;
             }
             if (gltf) {
-                // The file's triangles, all of them, with this object's material.
+                // The file's triangles, all of them, with this object's material (and their texture
+                // coordinates, if every part has them).
+                bool uvs = true;
                 for (const SceneObject& part : readGltfScene(o.file).objects) {
                     const int first = int(o.mesh.vertices.size());
+                    uvs = uvs && part.hasUv();
                     if (part.type == ShapeType::Mesh) {
                         o.mesh.vertices.insert(o.mesh.vertices.end(), part.mesh.vertices.begin(),
                                                part.mesh.vertices.end());
@@ -598,13 +685,17 @@ Scene loadScene(const std::string& path) {
                             for (int& v : f) v += first;
                             o.mesh.faces.push_back(std::move(f));
                         }
+                        if (uvs)
+                            o.mesh.faceUv.insert(o.mesh.faceUv.end(), part.mesh.faceUv.begin(), part.mesh.faceUv.end());
                     } else {
                         o.mesh.vertices.insert(o.mesh.vertices.end(), part.vertices.begin(), part.vertices.end());
                         std::vector<int> f(part.vertices.size());
                         for (size_t k = 0; k < f.size(); ++k) f[k] = first + int(k);
                         o.mesh.faces.push_back(std::move(f));
+                        if (uvs) o.mesh.faceUv.push_back(part.uv);
                     }
                 }
+                if (!uvs) o.mesh.faceUv.clear();
             } else {
                 o.mesh = readPolygonSoup(o.file, w.at("file").path);
             }
@@ -627,6 +718,17 @@ Scene loadScene(const std::string& path) {
     }
     if (!scene.hasEmitter())
         logWarning(path, ": no material emits light: every radiosity will be zero (a black answer)");
+    return scene;
+}
+
+}  // namespace
+
+Scene loadScene(const std::string& path) {
+    Scene scene = isGltfPath(path) ? loadGltfScene(path) : isObjPath(path) ? loadObjScene(path) : loadJsonScene(path);
+    for (const SceneObject& o : scene.objects)
+        if (scene.materialOf(o).textured() && !o.hasUv())
+            logInfo(path, ": object '", o.name, "' has no texture coordinates",
+                    o.type == ShapeType::Sphere ? " (a sphere)" : "", ": it takes its textures' mean");
     return scene;
 }
 

@@ -33,7 +33,7 @@ DirectLight::DirectLight(const Scene& scene, const PatchSet& patches) {
         s.normal = patches.normal[i];  // the front the patches emit from
         s.centre = Vec3::Zero();
         for (int k = 0; k < s.count; ++k) s.centre += s.corner[size_t(k)] / double(s.count);
-        s.exitance = kPi * scene.materialOf(object).emission;
+        s.exitance = kPi * scene.materialOf(object).emissionAt(nullptr);  // a textured lamp: its mean
         if (s.count == 4) {
             const double a = (s.corner[1] - s.corner[0]).cross(s.corner[2] - s.corner[0]).norm();
             const double b = (s.corner[2] - s.corner[0]).cross(s.corner[3] - s.corner[0]).norm();

@@ -44,7 +44,7 @@ Rgb FinalGather::trace(const Vec3& origin, const Vec3& dir, Generator& rng, int 
     const Material& m = *hit.material;
     if (m.type == MaterialType::Diffuse) {
         if (!hit.frontFacing(dir)) return Rgb::Zero();
-        return m.emission + reflected(hit, rng, 0);
+        return hit.emission + reflected(hit, rng, 0);
     }
     if (depth >= settings_.maxSpecularDepth) return Rgb::Zero();
     SpecularBranch branches[2];
@@ -58,7 +58,7 @@ Rgb FinalGather::trace(const Vec3& origin, const Vec3& dir, Generator& rng, int 
 
 template <typename Generator>
 Rgb FinalGather::reflected(const SurfaceHit& x, Generator& rng, int level) const {
-    const Rgb& rho = x.material->reflectance;
+    const Rgb& rho = x.reflectance;
     if ((rho <= 0).all()) return Rgb::Zero();
     if (level == 0 && indirect_ && x.patch >= 0) {
         // The solve's indirect light where the camera looks, the direct light of the small sources
@@ -116,13 +116,13 @@ Rgb FinalGather::indirectIrradiance(const SurfaceHit& x, Generator& rng, int ray
             // Direct light found by a gather ray: its share of the MIS combination.
             const double cosX = x.normal.dot(d), cosL = -y.normal.dot(d);
             const double lightPdf = tracer_.emitterPdfArea(y.patch) * y.t * y.t / cosL;
-            sum += y.material->emission * misWeight(rays, cosX * kInvPi, lightSamples, lightPdf);
+            sum += y.emission * misWeight(rays, cosX * kInvPi, lightSamples, lightPdf);
         }
         if (level == 0 && w.length < settings_.closeFactor * tracer_.patches().radius[size_t(y.patch)]) {
             // Too close for patch-level radiosity: shade the landing point itself.
             sum += w.throughput * reflected(y, rng, level + 1);
         } else {
-            const Rgb B = radiosityAt(y) - kPi * y.material->emission;
+            const Rgb B = radiosityAt(y) - kPi * y.emission;
             sum += w.throughput * B.max(0.0) * kInvPi;
         }
     }

@@ -51,21 +51,21 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
         if (!hit.frontFacing(d)) break;  // back faces are black
         if (m.emits() && !byLight) {
             if (specular) {
-                L += throughput * m.emission;
+                L += throughput * hit.emission;
             } else {
                 const double cosL = -hit.normal.dot(d);
                 const double lightPdf = tracer.emitterPdfArea(hit.patch) * hit.t * hit.t / cosL;
-                L += throughput * m.emission * powerHeuristic(bsdfPdf, lightPdf);
+                L += throughput * hit.emission * powerHeuristic(bsdfPdf, lightPdf);
             }
         }
-        if ((m.reflectance <= 0).all()) break;
+        if ((hit.reflectance <= 0).all()) break;
         const Vec3 x = tracer.offset(hit, -d);
         // Next-event estimation: one point on the emitters.
         if (tracer.hasEmitters()) {
             skipTo(rng, dims + kLight);
             const LightSample l = tracer.sampleLight(hit.point, hit.normal, rng);
             if (l.found())
-                L += throughput * m.reflectance * kInvPi * l.radiance * (l.cosine / l.pdf) *
+                L += throughput * hit.reflectance * kInvPi * l.radiance * (l.cosine / l.pdf) *
                      powerHeuristic(l.pdf, l.cosine * kInvPi);
         }
         // Cosine-sampled bounce: f cos / pdf = rho.
@@ -73,7 +73,7 @@ Rgb pathRadiance(const SceneTracer& tracer, const Vec3& origin, const Vec3& dir,
         d = cosineDirection(hit.normal, rng);
         bsdfPdf = hit.normal.dot(d) * kInvPi;
         o = x;
-        throughput *= m.reflectance;
+        throughput *= hit.reflectance;
         specular = false;
         byLight = false;
         if (depth + 1 >= settings.rouletteDepth) {
@@ -133,7 +133,7 @@ Image lightPathsToEye(const SceneTracer& tracer, const Camera& camera, int64_t p
                 double px, py, cosAxis;
                 if (!(cosSurface > 0) || !eye.project(l.hit.point, px, py, cosAxis)) continue;
                 if (!tracer.visible(tracer.offset(l.hit, toEye), eye.origin())) continue;
-                const Rgb value = l.power * l.hit.material->reflectance * kInvPi * cosSurface /
+                const Rgb value = l.power * l.hit.reflectance * kInvPi * cosSurface /
                                   (distance * distance * cosAxis * cosAxis * cosAxis * pixelArea);
                 splats[size_t(c)].push_back({uint32_t(int(py) * camera.width + int(px)), value.matrix().cast<float>()});
             }

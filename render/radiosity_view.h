@@ -21,6 +21,10 @@ struct ViewSettings {
     uint64_t seed = 1;
     int maxSpecularDepth = 16;    // mirror and glass bounces followed (as the final gather's)
     double minThroughput = 1e-3;  // specular branches carrying less are dropped
+    // The radiosity of each patch (SolveResult::solution.display), or null. Textured surfaces show
+    // the irradiance interpolated from it times the texel; without it, from the corners' means,
+    // which carry the neighbours' reflectances across texture edges.
+    const std::vector<Rgb>* patchRadiosity = nullptr;
 };
 
 Image renderRadiosityView(const Scene& scene, const Camera& camera, const PatchSet& patches,

@@ -171,10 +171,12 @@ SceneTracer::SceneTracer(const Scene& scene, const PatchSet& patches, std::share
     for (size_t i = 0; i < patches.size(); ++i) {
         const Material& m = scene.materialOf(scene.objects[size_t(patches.object[i])]);
         if (m.type != MaterialType::Diffuse || !m.emits()) continue;
+        const Rgb emission = m.emissionTexture ? meanEmission(scene, patches, i) : m.emission;
+        if (!(emission > 0).any()) continue;
         emitterPatch_.push_back(int(i));
-        total += patches.area[i] * m.emission.sum();
+        total += patches.area[i] * emission.sum();
         cdf.push_back(total);
-        emittedPower_ += kPi * patches.area[i] * m.emission;
+        emittedPower_ += kPi * patches.area[i] * emission;
     }
     for (size_t k = 0; k < emitterPatch_.size(); ++k) {
         const size_t i = size_t(emitterPatch_[k]);
@@ -204,7 +206,7 @@ SurfaceHit SceneTracer::trace(const Vec3& origin, const Vec3& dir, double tMin) 
         s.object = sphereObject_[k];
         s.normal = (origin + t * dir - sphere.center).normalized();
         s.point = sphere.center + sphere.radius * s.normal;
-        s.material = &scene_.materialOf(scene_.objects[size_t(s.object)]);
+        shade(s);
         return s;
     }
     const Hit h = rays_->intersect(origin, dir, tMin, 1e30, RayView::Exact);
@@ -226,8 +228,21 @@ SurfaceHit SceneTracer::trace(const Vec3& origin, const Vec3& dir, double tMin) 
         // Put the point back on the sphere: the float hit distance is off by ~1e-7 of the radius.
         s.point = sphere.center + sphere.radius * s.normal;
     }
-    s.material = &scene_.materialOf(scene_.objects[size_t(s.object)]);
+    shade(s);
     return s;
+}
+
+void SceneTracer::shade(SurfaceHit& s) const {
+    const SceneObject& o = scene_.objects[size_t(s.object)];
+    s.material = &scene_.materialOf(o);
+    if (!s.material->textured() || s.patch < 0 || !patches_.hasUv() || !o.hasUv()) {
+        s.reflectance = s.material->reflectanceAt(nullptr);
+        s.emission = s.material->emissionAt(nullptr);
+        return;
+    }
+    const Vec2 uv = patches_.uvAtHit(size_t(s.patch), s.u, s.v);
+    s.reflectance = s.material->reflectanceAt(&uv);
+    s.emission = s.material->emissionAt(&uv);
 }
 
 bool SceneTracer::visible(const Vec3& a, const Vec3& b) const { return !rays_->occluded(a, b, 1e-7, RayView::Exact); }
@@ -255,7 +270,14 @@ EmitterSample SceneTracer::sampleEmitter(double u, double u1, double u2) const {
     EmitterSample e;
     e.point = samplePatchPoint(patches_, i, u1, u2, 0);
     e.normal = patches_.normal[i];
-    e.radiance = scene_.materialOf(scene_.objects[size_t(patches_.object[i])]).emission;
+    const SceneObject& o = scene_.objects[size_t(patches_.object[i])];
+    const Material& m = scene_.materialOf(o);
+    if (m.emissionTexture && patches_.hasUv() && o.hasUv()) {
+        const Vec2 uv = patches_.uvAtPoint(i, e.point);
+        e.radiance = m.emissionAt(&uv);
+    } else {
+        e.radiance = m.emissionAt(nullptr);
+    }
     e.pdfArea = emitterPdf_[i];
     e.patch = int(i);
     return e;

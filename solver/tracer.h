@@ -26,6 +26,10 @@ struct SurfaceHit {
     double u = 0, v = 0;  // Embree's coordinates on the patch
     int object = -1;
     const Material* material = nullptr;
+    // The diffuse reflectance and emitted radiance at the point: the material's, times the texel of
+    // its textures there (Material::reflectanceAt).
+    Rgb reflectance = Rgb::Zero();
+    Rgb emission = Rgb::Zero();
     // True if a ray travelling along `dir` arrived on the front side.
     bool frontFacing(const Vec3& dir) const { return normal.dot(dir) < 0; }
 };
@@ -110,6 +114,9 @@ public:
     }
 
 private:
+    // Sets the hit's material and its reflectance and emission there.
+    void shade(SurfaceHit& s) const;
+
     const Scene& scene_;
     const PatchSet& patches_;
     std::shared_ptr<const RayScene> rays_;

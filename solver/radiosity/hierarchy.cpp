@@ -39,7 +39,7 @@ struct Links {
 class Hierarchy {
 public:
     Hierarchy(const Scene& scene, const PatchSet& roots, const RayScene& rays, const HierarchySettings& settings)
-        : rays_(rays), settings_(settings) {
+        : scene_(scene), rays_(rays), settings_(settings) {
         nodes_ = roots;
         const size_t n = roots.size();
         parent_.assign(n, -1);
@@ -47,10 +47,9 @@ public:
         rho_.resize(n);
         E_.resize(n);
         for (size_t i = 0; i < n; ++i) {
-            const Material& m = scene.materialOf(scene.objects[size_t(roots.object[i])]);
-            PENUMBRA_CHECK(m.type == MaterialType::Diffuse);
-            rho_[i] = m.reflectance;
-            E_[i] = kPi * m.emission;
+            PENUMBRA_CHECK(scene.materialOf(scene.objects[size_t(roots.object[i])]).type == MaterialType::Diffuse);
+            rho_[i] = meanReflectance(scene, roots, i);
+            E_[i] = kPi * meanEmission(scene, roots, i);
         }
         B_ = E_;
         H_.assign(n, Rgb::Zero());
@@ -141,14 +140,19 @@ private:
         if (firstChild_[size_t(i)] >= 0) return;
         std::array<std::array<Vec3, 4>, 4> children;
         childPolygons(nodes_, size_t(i), children);
+        std::array<std::array<Vec2, 4>, 4> uvs;
+        const bool textured = nodes_.hasUv();
+        if (textured) childUvs(nodes_, size_t(i), uvs);
         const int first = int(nodes_.size());
-        for (const auto& c : children) {
-            nodes_.add(c, nodes_.cornerCount[size_t(i)], nodes_.object[size_t(i)], {0, 0, 0, 0});
+        for (size_t k = 0; k < 4; ++k) {
+            nodes_.add(children[k], nodes_.cornerCount[size_t(i)], nodes_.object[size_t(i)], {0, 0, 0, 0},
+                       textured ? &uvs[k] : nullptr);
             PENUMBRA_CHECK_EQ(nodes_.size(), parent_.size() + 1);  // a child of a real patch has area
             parent_.push_back(i);
             firstChild_.push_back(-1);
-            rho_.push_back(rho_[size_t(i)]);
-            E_.push_back(E_[size_t(i)]);
+            // Under a texture each element takes its own mean; else its parent's factors.
+            rho_.push_back(textured ? meanReflectance(scene_, nodes_, nodes_.size() - 1) : rho_[size_t(i)]);
+            E_.push_back(textured ? Rgb(kPi * meanEmission(scene_, nodes_, nodes_.size() - 1)) : E_[size_t(i)]);
             B_.push_back(B_[size_t(i)]);
             H_.push_back(Rgb::Zero());
             total_.push_back(total_[size_t(i)]);
@@ -360,7 +364,8 @@ private:
         PatchSet leaves;
         for (size_t i = 0; i < nodes_.size(); ++i) {
             if (firstChild_[i] >= 0) continue;
-            leaves.add(nodes_.corners[i], nodes_.cornerCount[i], nodes_.object[i], {0, 0, 0, 0});
+            leaves.add(nodes_.corners[i], nodes_.cornerCount[i], nodes_.object[i], {0, 0, 0, 0},
+                       nodes_.hasUv() ? &nodes_.uv[i] : nullptr);
             out.B.push_back(B_[i]);
             PowerBalance& p = out.power;
             p.emitted.push_back(nodes_.area[i] * E_[i]);
@@ -384,6 +389,7 @@ private:
         out.stats.rounds = rounds, out.stats.secondsLinks = sl, out.stats.secondsSolve = ss;
     }
 
+    const Scene& scene_;
     const RayScene& rays_;
     const HierarchySettings& settings_;
     PatchSet nodes_;  // every element: roots first, then children in fours

@@ -15,8 +15,8 @@ RadiositySystem buildSystem(const Scene& scene, const PatchSet& patches) {
         const Material& m = scene.materialOf(scene.objects[size_t(patches.object[i])]);
         const bool diffuse = m.type == MaterialType::Diffuse;
         s.specular[i] = !diffuse;
-        s.reflectance[i] = diffuse ? m.reflectance : Rgb::Zero();
-        s.emission[i] = diffuse ? Rgb(kPi * m.emission) : Rgb::Zero();
+        s.reflectance[i] = diffuse ? meanReflectance(scene, patches, i) : Rgb::Zero();
+        s.emission[i] = diffuse ? Rgb(kPi * meanEmission(scene, patches, i)) : Rgb::Zero();
     }
     return s;
 }
