@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <set>
+#include <sstream>
 
 #include "core/log.h"
 #include "mesh/scene_detail.h"
@@ -30,7 +32,32 @@ std::shared_ptr<const Texture> objTexture(const std::string& file, const tinyobj
     }
 }
 
-Material mapMaterial(const tinyobj::material_t& t, const std::string& name, const std::string& directory,
+// The materials of the OBJ's libraries (mtllib) that give a Kd line. The reader cannot say: it puts
+// 0.6 in a Kd left out beside a map_Kd, but only until some earlier material has had a Kd (its flag
+// is not reset per material), and Blender leaves Kd out when a texture gives the colour.
+std::set<std::string> materialsWithKd(const std::string& objBytes, const std::string& directory) {
+    std::set<std::string> out;
+    std::istringstream obj(objBytes);
+    for (std::string line; std::getline(obj, line);) {
+        std::istringstream words(line);
+        std::string key, library;
+        if (!(words >> key) || key != "mtllib") continue;
+        while (words >> library) {
+            std::ifstream in(std::filesystem::path(directory) / library);
+            std::string current;
+            for (std::string l; std::getline(in, l);) {
+                std::istringstream w(l);
+                std::string k;
+                if (!(w >> k)) continue;
+                if (k == "newmtl") w >> current;
+                if (k == "Kd" && !current.empty()) out.insert(current);
+            }
+        }
+    }
+    return out;
+}
+
+Material mapMaterial(const tinyobj::material_t& t, const std::string& name, const std::string& directory, bool hasKd,
                      const Where& w, std::set<std::string>& notes) {
     Material m;
     m.name = name;
@@ -60,6 +87,11 @@ Material mapMaterial(const tinyobj::material_t& t, const std::string& name, cons
     if (ks.maxCoeff() > 0) notes.insert("the specular colour Ks of diffuse materials is left out");
     if (!t.diffuse_texname.empty()) {
         m.reflectanceTexture = objTexture(t.diffuse_texname, t.diffuse_texopt, directory, w.at("map_Kd"));
+        // Blender writes no Kd beside a map_Kd: the texture alone is meant.
+        if (!hasKd) {
+            m.reflectance = Rgb::Ones();
+            notes.insert("map_Kd without Kd: the texture alone gives the reflectance, as Blender writes it");
+        }
         if (m.reflectanceTexture->maximum() > 1)
             w.at("map_Kd").fail(
                 cat("a reflectance texture's values must lie in [0, 1], it holds ", m.reflectanceTexture->maximum()));
@@ -93,9 +125,11 @@ Scene readObjScene(const std::string& path) {
     scene.fingerprint = fnv1a(bytes);
     std::set<std::string> notes;
     const std::vector<tinyobj::material_t>& mtl = reader.GetMaterials();
+    const std::set<std::string> withKd = materialsWithKd(bytes, config.mtl_search_path);
     for (size_t k = 0; k < mtl.size(); ++k) {
         const std::string name = mtl[k].name.empty() ? cat("material", k) : mtl[k].name;
-        scene.materials.push_back(mapMaterial(mtl[k], name, config.mtl_search_path, top.at("newmtl " + name), notes));
+        scene.materials.push_back(mapMaterial(mtl[k], name, config.mtl_search_path, withKd.count(mtl[k].name) > 0,
+                                              top.at("newmtl " + name), notes));
         const std::string text = cat(mtl[k].name, mtl[k].illum, mtl[k].ior, mtl[k].shininess);
         scene.fingerprint = fnv1a(text, scene.fingerprint);
     }

@@ -52,24 +52,25 @@ std::pair<double, std::string> largestDifference(const nlohmann::json& a, const 
     return worst;
 }
 
-// Solves the Blender export `file` (of scenes/cornell-box.json) and the JSON scene alike, in `out`:
+// Solves the Blender export `file` (of scenes/`json`, the Cornell box by default) and the JSON scene
+// alike, in `out`:
 // the reports agree within 1e-6 (every object's area, radiosity and powers, and the totals), and
 // radiosity views (the file's from `camera`, empty for its own) agree within 1e-3 pooled L1 after a
 // 5x5 blur.
-void expectTheJsonCornellBox(const std::string& out, const std::string& file, const std::string& camera) {
+void expectTheJsonCornellBox(const std::string& out, const std::string& file, const std::string& camera,
+                             const std::string& json = "cornell-box.json") {
     fs::remove_all(out);
     const std::string settings = " --patches 300 --form-factors rays --quiet";
-    ASSERT_EQ(run(cat("solve ", scenePath("cornell-box.json"), settings, " --out ", out, "/json")).status, 0);
+    ASSERT_EQ(run(cat("solve ", scenePath(json), settings, " --out ", out, "/json")).status, 0);
     const CommandResult solved = run(cat("solve ", scenePath(file), settings, " --out ", out, "/file"));
     ASSERT_EQ(solved.status, 0) << solved.output;
     const auto [difference, where] = largestDifference(reportOf(out + "/json"), reportOf(out + "/file"));
     EXPECT_LT(difference, 1e-6) << where;
     EXPECT_EQ(reportOf(out + "/file")["objects"].size(), 19u);
     const std::string view = " --integrator radiosity --resolution 64x64 --quiet";
-    ASSERT_EQ(run(cat("render ", scenePath("cornell-box.json"), " --solution ", out, "/json", view, " --out ", out,
-                      "/json.exr"))
-                  .status,
-              0);
+    ASSERT_EQ(
+        run(cat("render ", scenePath(json), " --solution ", out, "/json", view, " --out ", out, "/json.exr")).status,
+        0);
     const CommandResult image =
         run(cat("render ", scenePath(file), " --solution ", out, "/file", view, camera, " --out ", out, "/file.exr"));
     ASSERT_EQ(image.status, 0) << image.output;
@@ -119,6 +120,20 @@ TEST(ImportSlow, BlenderGltfOfCornellGlassRendersAsTheJsonScene) {
         if (e.pixels < 30) continue;  // the lamp's and the ceiling strips' few pixels
         EXPECT_NEAR(e.ratio, 1.0, e.name == "mirror_ball" ? 0.06 : 0.03) << e.name;
     }
+}
+
+// Blender's glTF and OBJ of the textured Cornell box (scenes/cornell-textured.json: a checker floor
+// and a striped back wall, image texture nodes on the base colour, the PNGs embedded in the .glb and
+// named by map_Kd beside the OBJ, which has no Kd for them) give the JSON scene's report and radiosity
+// view: the same texture coordinates (Blender's v up the image turned back by the exporters) and the
+// same patch means. Measured (3,049 patches): glb within 5.1e-7, OBJ within 9e-16.
+TEST(Import, BlenderExportsOfTheTexturedCornellBoxSolveAsTheJsonScene) {
+    expectTheJsonCornellBox(test::tempDir() + "/import-textured-glb", "blender/cornell-textured.glb", "",
+                            "cornell-textured.json");
+    expectTheJsonCornellBox(
+        test::tempDir() + "/import-textured-obj", "blender/cornell-textured.obj",
+        R"( --camera '{"position": [0.278, 0.273, -0.8], "look_at": [0.278, 0.273, 0], "fov_y_deg": 39.3}')",
+        "cornell-textured.json");
 }
 
 // Blender's OBJ + MTL of the Cornell box (quads kept, metres in decimals, Kd and Ke) gives the JSON

@@ -11,10 +11,14 @@
 # radiance as emission colour (its largest channel 1) times emission strength, which the exporter
 # writes as emissiveFactor and KHR_materials_emissive_strength; a mirror metallic 1, roughness 0;
 # glass transmission 1 with its IOR. Spheres become UV spheres (64 x 32), which the JSON cannot hold.
-# The camera: vertical field of view and the scene's resolution. Used once to make the committed
-# files (tests/test_import.cpp); CI does not run Blender.
+# The camera: vertical field of view and the scene's resolution. A diffuse reflectance_texture
+# becomes an image texture node on the base colour, with the quads' texture coordinates (the OBJ then
+# written with them and map_Kd). Used once to make the committed files (tests/test_import.cpp,
+# tests/test_texture.cpp); CI does not run Blender.
 import json
 import math
+import os
+import shutil
 import sys
 
 import bpy
@@ -24,6 +28,7 @@ args = sys.argv[sys.argv.index("--") + 1:]
 scene_path, glb_path = args[0], args[1]
 obj_path = args[2] if len(args) > 2 else None
 scene = json.load(open(scene_path))
+textured = any("reflectance_texture" in m for m in scene["materials"].values() if isinstance(m, dict))
 unit = scene.get("unit_scale", 1.0)
 
 bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -43,9 +48,19 @@ for name, m in scene["materials"].items():
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     kind = m["type"]
     if kind == "diffuse":
-        r = m["reflectance"]
-        r = [r, r, r] if isinstance(r, (int, float)) else r
-        bsdf.inputs["Base Color"].default_value = (r[0], r[1], r[2], 1)
+        if "reflectance_texture" in m:
+            # An image texture node on Base Color: the exporter writes baseColorTexture (the PNG
+            # embedded in the .glb) and the OBJ exporter map_Kd. A factor beside it is not exported.
+            if "reflectance" in m:
+                raise SystemExit(f"{name}: a reflectance factor with a texture is not exported by this script")
+            node = mat.node_tree.nodes.new("ShaderNodeTexImage")
+            node.image = bpy.data.images.load(os.path.join(os.path.dirname(os.path.abspath(scene_path)),
+                                                           m["reflectance_texture"]))
+            mat.node_tree.links.new(node.outputs["Color"], bsdf.inputs["Base Color"])
+        else:
+            r = m["reflectance"]
+            r = [r, r, r] if isinstance(r, (int, float)) else r
+            bsdf.inputs["Base Color"].default_value = (r[0], r[1], r[2], 1)
         bsdf.inputs["Specular"].default_value = 0
         bsdf.inputs["Roughness"].default_value = 1
         if "emission" in m:
@@ -73,6 +88,12 @@ for o in scene["objects"]:
         verts = [place(v) for v in o["vertices"]]
         mesh = bpy.data.meshes.new(o["name"])
         mesh.from_pydata(verts, [], [list(range(len(verts)))])
+        # Texture coordinates as our JSON gives them (default: the unit square from vertex 0);
+        # Blender's v runs up the image, glTF's (and ours) down, which the exporter turns back.
+        uv = o.get("uv", [[0, 0], [1, 0], [1, 1], [0, 1]] if kind == "quad" else [[0, 0], [1, 0], [0, 1]])
+        layer = mesh.uv_layers.new(name="UVMap")
+        for loop in mesh.loops:
+            layer.data[loop.index].uv = (uv[loop.vertex_index][0], 1 - uv[loop.vertex_index][1])
         mesh.update()
         obj = bpy.data.objects.new(o["name"], mesh)
         blender_scene.collection.objects.link(obj)
@@ -109,4 +130,10 @@ bpy.ops.export_scene.gltf(filepath=glb_path, export_format="GLB", export_cameras
                           export_lights=False)
 if obj_path:
     bpy.ops.wm.obj_export(filepath=obj_path, export_materials=True, forward_axis="NEGATIVE_Z", up_axis="Y",
-                          export_uv=False, export_normals=False, export_triangulated_mesh=False)
+                          export_uv=textured, export_normals=False, export_triangulated_mesh=False,
+                          path_mode="STRIP")
+    # map_Kd names the image alone (STRIP: the file is not saved, so RELATIVE has no folder to be
+    # relative to): the images go beside the OBJ, as a user would hand them over.
+    for image in bpy.data.images:
+        if image.filepath:
+            shutil.copy(bpy.path.abspath(image.filepath), os.path.dirname(os.path.abspath(obj_path)))
