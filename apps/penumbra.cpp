@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
 #include <thread>
@@ -29,6 +30,7 @@
 #include "io/output_set.h"
 #include "io/report.h"
 #include "io/solution.h"
+#include "mesh/gltf_scene.h"
 #include "mesh/scene.h"
 #include "render/final_gather.h"
 #include "render/image_metrics.h"
@@ -291,11 +293,8 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
                         "); raise --max-iterations or loosen --tolerance; nothing written"));
 
     Image view;
-    if (scene.hasCamera) {
-        ViewSettings settings{s.viewSpp, common.seed};
-        settings.patchRadiosity = &r.solution.display;
-        view = renderRadiosityView(scene, scene.camera, r.patches, r.rays, corners, settings);
-    }
+    if (scene.hasCamera)
+        view = renderRadiosityView(scene, scene.camera, r.patches, r.rays, corners, {s.viewSpp, common.seed});
     if (!cluster::leader()) return cluster::barrier(), 0;
     outputs->write("solution.bin", [&](const std::string& path) { writeSolution(path, r); });
     outputs->write("convergence.csv", [&](const std::string& path) { writeFileAtomic(path, convergenceCsv(r)); });
@@ -513,17 +512,94 @@ int runView(RenderCli& c, SolveCli& s, ViewerOptions& options, const CommonOptio
     return 0;
 }
 
-int runExport(const std::string& dir, const std::string& out, std::string format, double stops) {
-    const std::string ext = std::filesystem::path(out).extension().string();
+struct ExportCli {
+    std::string dir, out, format, scene, geometry = "auto";
+    double stops = 0;
+    int lightmap = 0;
+};
+
+// The scene file a solve was of: --scene, else the one its report.json names.
+std::string solvedSceneFile(const ExportCli& c) {
+    if (!c.scene.empty()) return c.scene;
+    const std::string report = (std::filesystem::path(c.dir) / "report.json").string();
+    std::ifstream in(report);
+    nlohmann::json j;
+    try {
+        if (in) j = nlohmann::json::parse(in);
+    } catch (const nlohmann::json::exception&) {
+    }
+    if (!j.contains("scene") || !j["scene"].contains("file") || !j["scene"]["file"].is_string())
+        throw Error(cat(report, ": names no scene file: give --scene"));
+    // As given to the solve, else as it was from where the solve ran.
+    const std::string given = j["scene"]["file"].get<std::string>();
+    if (std::filesystem::exists(given) || !j["scene"].contains("absolute_file") ||
+        !j["scene"]["absolute_file"].is_string())
+        return given;
+    return j["scene"]["absolute_file"].get<std::string>();
+}
+
+int runExport(ExportCli c) {
+    const std::string ext = std::filesystem::path(c.out).extension().string();
+    std::string& format = c.format;
     if (format.empty()) format = ext == ".ply" ? "ply" : (ext == ".glb" || ext == ".gltf") ? "gltf" : "";
     if (format != "gltf" && format != "ply")
         throw Error(cat("--format: expected gltf or ply (or an --out ending in .glb, .gltf or .ply), got '",
                         format.empty() ? ext : format, "'"));
-    const std::filesystem::path target(out);
+    if (c.geometry != "auto" && c.geometry != "scene" && c.geometry != "patches")
+        throw Error(cat("--geometry: expected auto, scene or patches, got '", c.geometry, "'"));
+    // The user's own file back, with the light baked in, where the solve was of a glTF file.
+    std::string sceneFile;
+    if (c.geometry == "scene") {
+        sceneFile = solvedSceneFile(c);
+    } else if (c.geometry == "auto") {
+        try {
+            sceneFile = solvedSceneFile(c);
+        } catch (const Error&) {  // a solve without its report: the patches
+        }
+    }
+    const bool roundTrip = c.geometry == "scene" || (c.geometry == "auto" && isGltfPath(sceneFile));
+    if (roundTrip && (format != "gltf" || !isGltfPath(sceneFile)))
+        throw Error(cat("--geometry scene: writes the glTF file the scene came from again (", sceneFile,
+                        " is not one), as .glb or .gltf"));
+    const std::filesystem::path target(c.out);
     const std::string name = target.filename().string();
     OutputSet outputs(target.parent_path().string(), {name}, cat(".", name, ".lock"));
-    const SolveResult stored = readSolution((std::filesystem::path(dir) / "solution.bin").string());
-    ExportMesh mesh = exportMesh(stored.patches, stored.corners);
+    const SolveResult stored = readSolution((std::filesystem::path(c.dir) / "solution.bin").string());
+    if (roundTrip) {
+        const Scene scene = loadScene(sceneFile);
+        if (scene.fingerprint != stored.sceneFingerprint)
+            throw Error(cat(c.dir, ": its solution is not of ", sceneFile, " as it is now (solve it again)"));
+        RoundTrip r;
+        outputs.write(
+            name, [&](const std::string& path) { r = writeGltfRoundTrip(scene, stored, path, c.stops, c.lightmap); });
+        outputs.commit();
+        logInfo("wrote ", c.out, ": ", sceneFile, "'s ", r.nodes, " nodes, ", r.primitives, " primitives, ", r.vertices,
+                " vertices with COLOR_0 = min(1, ", r.exposure, " x irradiance / pi) and _RADIANCE",
+                r.meshesCopied ? cat("; ", r.meshesCopied, " meshes placed twice copied") : "",
+                r.verticesOffCorners
+                    ? cat("; ", r.verticesOffCorners, " vertices off the patch corners took the nearest")
+                    : "",
+                r.lightmaps ? cat("; ", r.lightmaps, " lightmaps of ", c.lightmap, "^2 texels on TEXCOORD_1, at least ",
+                                  r.texelsPerMetre, " texels a metre",
+                                  r.texelsMissed ? cat(" (", r.texelsMissed, " texels found no patch: 0)") : "")
+                            : "");
+        return 0;
+    }
+    if (c.lightmap > 0) throw Error("--lightmap: only for the round trip of a glTF scene (--geometry scene)");
+    const double stops = c.stops;
+    // The materials of the scene solved, where it can be found as it was: mirrors and glass then go
+    // out as glTF's own materials (else by their radiance, which is black).
+    std::optional<Scene> scene;
+    try {
+        Scene s = loadScene(solvedSceneFile(c));
+        if (s.fingerprint == stored.sceneFingerprint)
+            scene = std::move(s);
+        else
+            logInfo("export: ", s.path, " has changed since the solve: mirrors and glass go out by their radiance");
+    } catch (const Error& e) {
+        logInfo("export: ", e.what(), ": mirrors and glass go out by their radiance");
+    }
+    ExportMesh mesh = exportMesh(stored.patches, stored.corners, scene ? &*scene : nullptr);
     for (auto& p : mesh.positions) p *= stored.metresPerUnit;  // metres, whatever the scene's size
     const double exposure = exportExposure(mesh, stops);
     outputs.write(name, [&](const std::string& path) {
@@ -533,7 +609,7 @@ int runExport(const std::string& dir, const std::string& out, std::string format
             writePly(mesh, path, exposure);
     });
     outputs.commit();
-    logInfo("wrote ", out, ": ", mesh.positions.size(), " vertices, ", mesh.triangles.size(),
+    logInfo("wrote ", c.out, ": ", mesh.positions.size(), " vertices, ", mesh.triangles.size(),
             " triangles, colours = ", format == "gltf" ? "min(1, " : "sRGB(", exposure, " x radiance)");
     return 0;
 }
@@ -745,13 +821,21 @@ int main(int argc, char** argv) {
     renderCmd->add_option("--exposure", render.exposure, "Exposure of the PNG preview, in stops");
     addSolveOptions(renderCmd, renderSolve);
 
-    std::string exportDir, exportOut, exportFormat;
-    double exportStops = 0;
-    CLI::App* exportCmd = app.add_subcommand("export", "Export a solved scene's mesh with per-vertex radiance");
-    exportCmd->add_option("solution", exportDir, "Directory of a solve")->required();
-    exportCmd->add_option("--out", exportOut, "Output file (.glb, .gltf or .ply)")->required();
-    exportCmd->add_option("--format", exportFormat, "gltf | ply (default: from the --out extension)");
-    exportCmd->add_option("--exposure", exportStops, "Exposure of the colours, in stops from the automatic one");
+    ExportCli exportCli;
+    CLI::App* exportCmd = app.add_subcommand(
+        "export", "Export a solved scene with per-vertex light: a glTF scene's own file back, else the patches");
+    exportCmd->add_option("solution", exportCli.dir, "Directory of a solve")->required();
+    exportCmd->add_option("--out", exportCli.out, "Output file (.glb, .gltf or .ply)")->required();
+    exportCmd->add_option("--format", exportCli.format, "gltf | ply (default: from the --out extension)");
+    exportCmd->add_option("--exposure", exportCli.stops, "Exposure of the colours, in stops from the automatic one");
+    exportCmd->add_option("--geometry", exportCli.geometry,
+                          "auto | scene | patches: the glTF file the scene came from with COLOR_0 on its own "
+                          "vertices (auto: for glTF scenes), or the solved patches");
+    exportCmd->add_option("--scene", exportCli.scene, "The scene file solved (default: the one report.json names)");
+    exportCmd
+        ->add_option("--lightmap", exportCli.lightmap,
+                     "Also a SIZE x SIZE lightmap per primitive on TEXCOORD_1 (the round trip of a glTF scene)")
+        ->check(inRange(1, 16384));
 
     std::string compareImage, compareReference, compareScene, compareCamera;
     CLI::App* compareCmd = app.add_subcommand("compare", "Compare an image with a reference (e.g. a path-traced one)");
@@ -861,8 +945,7 @@ int main(int argc, char** argv) {
         const int status = [&] {
             if (*solveCmd) return runSolve(solve, common);
             if (*renderCmd) return runRender(render, renderSolve, common);
-            if (*exportCmd)
-                return onLeader("export", [&] { return runExport(exportDir, exportOut, exportFormat, exportStops); });
+            if (*exportCmd) return onLeader("export", [&] { return runExport(exportCli); });
             if (*compareCmd)
                 return onLeader(
                     "compare", [&] { return runCompare(compareImage, compareReference, compareScene, compareCamera); });

@@ -17,6 +17,7 @@
 #include <memory>
 
 #include "core/error.h"
+#include "core/image_file.h"
 #include "core/oiio_module.h"
 #include "core/parallel.h"
 #include "io/atomic_file.h"
@@ -113,32 +114,6 @@ void writeExr(const std::string& path, const Image& image) {
 }
 
 // An EXR's R, G and B (or its Y, as grey); false if it has neither, for OpenImageIO to read.
-bool readExr(const std::string& path, Image& image) {
-    try {
-        Imf::InputFile in(path.c_str(), std::max(1, threadCount()));
-        const Imf::ChannelList& channels = in.header().channels();
-        const bool rgb = channels.findChannel("R") && channels.findChannel("G") && channels.findChannel("B");
-        if (!rgb && !channels.findChannel("Y")) return false;
-        const Imath::Box2i window = in.header().dataWindow();
-        const int w = window.max.x - window.min.x + 1, h = window.max.y - window.min.y + 1;
-        image = Image(w, h);
-        const size_t pixel = 3 * sizeof(float), row = pixel * size_t(w);
-        // The slices' base is where pixel (0, 0) of the data window's origin would be.
-        char* base = reinterpret_cast<char*>(image.rgb.data()) - ptrdiff_t(window.min.x) * ptrdiff_t(pixel) -
-                     ptrdiff_t(window.min.y) * ptrdiff_t(row);
-        Imf::FrameBuffer frame;  // one slice a channel name: a grey image's Y into R, then copied
-        const char* names[3] = {"R", "G", "B"};
-        for (int c = 0; c < (rgb ? 3 : 1); ++c)
-            frame.insert(rgb ? names[c] : "Y", Imf::Slice(Imf::FLOAT, base + c * sizeof(float), pixel, row));
-        in.setFrameBuffer(frame);
-        in.readPixels(window.min.y, window.max.y);
-        if (!rgb)
-            for (size_t k = 0; k < image.rgb.size(); k += 3) image.rgb[k + 1] = image.rgb[k + 2] = image.rgb[k];
-        return true;
-    } catch (const std::exception& e) {
-        throw Error(cat(path, ": cannot read image: ", e.what()));
-    }
-}
 
 // 8-bit RGB as PNG by libpng, at its fast setting (the previews are for looking at).
 void writePng(const std::string& path, int w, int h, const unsigned char* rgb) {
@@ -170,16 +145,10 @@ void writeLinearImage(const Image& image, const std::string& path) {
 }
 
 Image readLinearImage(const std::string& path) {
+    ImagePixels pixels = readImagePixels(path);
     Image image;
-    if (extensionOf(path) == ".exr" && readExr(path, image)) return image;
-    const OiioModule& m = oiioModule();
-    char why[512] = "";
-    int w = 0, h = 0;
-    if (m.read(path.c_str(), &w, &h, nullptr, nullptr, why, sizeof why) != 0)
-        throw Error(cat(path, ": cannot read image (", why, ")"));
-    image = Image(w, h);
-    if (m.read(path.c_str(), &w, &h, nullptr, image.rgb.data(), why, sizeof why) != 0)
-        throw Error(cat(path, ": cannot read image: ", why));
+    image.width = pixels.width, image.height = pixels.height;
+    image.rgb = std::move(pixels.rgb);
     return image;
 }
 
@@ -207,6 +176,22 @@ void writePreviewPng(const Image& image, const std::string& path, double exposur
     std::vector<unsigned char> pixels(image.rgb.size());
     for (size_t k = 0; k < image.rgb.size(); ++k) pixels[k] = srgb8(double(image.rgb[k]) * scale);
     writeRgb8(path, image.width, image.height, pixels);
+}
+
+std::string pngBytes(int width, int height, const std::vector<unsigned char>& rgb) {
+    PENUMBRA_CHECK_EQ(rgb.size(), size_t(width) * size_t(height) * 3);
+    png_image png{};
+    png.version = PNG_IMAGE_VERSION;
+    png.width = png_uint_32(width), png.height = png_uint_32(height);
+    png.format = PNG_FORMAT_RGB;
+    png_alloc_size_t size = 0;
+    if (!png_image_write_to_memory(&png, nullptr, &size, 0, rgb.data(), 0, nullptr))
+        throw Error(cat("PNG encoding: ", png.message));
+    std::string bytes(size, '\0');
+    if (!png_image_write_to_memory(&png, bytes.data(), &size, 0, rgb.data(), 0, nullptr))
+        throw Error(cat("PNG encoding: ", png.message));
+    bytes.resize(size);
+    return bytes;
 }
 
 void writeRgb8(const std::string& path, int width, int height, const std::vector<unsigned char>& rgb) {

@@ -18,6 +18,9 @@ Image readLinearImage(const std::string& path);
 // log-average luminance at middle grey) by that many stops.
 void writePreviewPng(const Image& image, const std::string& path, double exposureStops = 0);
 
+// 8-bit RGB pixels (rows from the top) as the bytes of a PNG file (libpng), e.g. to embed in a glTF.
+std::string pngBytes(int width, int height, const std::vector<unsigned char>& rgb);
+
 // Writes 8-bit RGB pixels (rows from the top) as they are, e.g. a window's contents.
 void writeRgb8(const std::string& path, int width, int height, const std::vector<unsigned char>& rgb);
 

@@ -1,5 +1,6 @@
 #include "io/report.h"
 
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -128,8 +129,10 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
                               {"seconds_so_far", round.secondsSoFar}});
         report["solver"]["refinement"] = rounds;
     }
-    report["scene"] = {
-        {"file", scene.path}, {"unit_scale", scene.unitScale}, {"inside_metres_per_unit", scene.metresPerUnit}};
+    report["scene"] = {{"file", scene.path},
+                       {"absolute_file", std::filesystem::absolute(scene.path).lexically_normal().string()},
+                       {"unit_scale", scene.unitScale},
+                       {"inside_metres_per_unit", scene.metresPerUnit}};
     // How the result was made: every setting of the solve, and the seed (a rerun with these gives
     // the same report, whatever the thread count).
     SolveOptions o = r.options;
@@ -168,7 +171,9 @@ std::string objectReferenceJson(const Scene& scene, const std::vector<ObjectEsti
                         {"points", points},
                         {"seconds", seconds},
                         {"threads", threadCount()}};
-    out["scene"] = {{"file", scene.path}, {"unit_scale", scene.unitScale}};
+    out["scene"] = {{"file", scene.path},
+                    {"absolute_file", std::filesystem::absolute(scene.path).lexically_normal().string()},
+                    {"unit_scale", scene.unitScale}};
     out["settings"] = {{"seed", settings.seed},
                        {"target_error", settings.targetError},
                        {"min_points", settings.minSamples},

@@ -112,11 +112,13 @@ Material mapMaterial(const tinygltf::Material& g, const std::string& name, const
     if (pbr.metallicFactor >= kMirrorMetallic && pbr.roughnessFactor <= kMirrorRoughness) {
         m.type = MaterialType::Mirror;
         m.reflectance = base;
+        m.doubleSided = g.doubleSided;
         if (pbr.baseColorTexture.index >= 0) notes.insert("textures on mirrors and glass are not used");
         return m;
     }
     m.type = MaterialType::Diffuse;
     m.reflectance = base;
+    m.doubleSided = g.doubleSided;
     if (pbr.metallicFactor >= kMirrorMetallic)
         notes.insert("rough metals (metallicFactor >= 0.5, roughnessFactor > 0.05) are taken as diffuse");
     if (g.extensions.count("KHR_materials_specular") || pbr.metallicFactor > 0)
@@ -141,8 +143,9 @@ Material mapMaterial(const tinygltf::Material& g, const std::string& name, const
         notes.insert("metallic-roughness, normal and occlusion textures are not used");
     for (const auto* info : {&pbr.baseColorTexture.extensions, &g.emissiveTexture.extensions})
         if (info->count("KHR_texture_transform")) notes.insert("KHR_texture_transform is not applied");
-    if (g.doubleSided) notes.insert("doubleSided: back faces stay black, as in our scene format");
     if (g.alphaMode != "OPAQUE") notes.insert("alphaMode " + g.alphaMode + ": surfaces are taken as opaque");
+    if (g.extensions.count("KHR_materials_unlit"))
+        notes.insert("KHR_materials_unlit materials are taken as diffuse of their base colour");
     return m;
 }
 
@@ -219,11 +222,27 @@ std::vector<T> readAccessor(const tinygltf::Model& model, int index, int compone
 
 bool isGltfPath(const std::string& path) { return hasExtension(path, {".glb", ".gltf"}); }
 
-Scene readGltfScene(const std::string& path) {
-    const std::string bytes = readFile(path, "glTF file");
-    const Where top{path, ""};
-    tinygltf::Model model;
+namespace {
+
+// Files a glTF names (buffers, images by URI) are read by our readFile: a folder, a device or a pipe
+// (/dev/zero, a FIFO) or a file past 2 GiB is refused by name instead of read until memory runs out
+// or forever.
+bool readNamedFile(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {
+    try {
+        const std::string bytes = readFile(path, "file the glTF names");
+        out->assign(bytes.begin(), bytes.end());
+        return true;
+    } catch (const Error& e) {
+        if (err) *err += e.what();
+        return false;
+    }
+}
+
+// The file's model, from its bytes.
+void readModel(const std::string& path, const std::string& bytes, tinygltf::Model& model) {
     tinygltf::TinyGLTF reader;
+    reader.SetFsCallbacks(
+        {&tinygltf::FileExists, &tinygltf::ExpandFilePath, &readNamedFile, &tinygltf::WriteWholeFile, nullptr});
     std::string err, warn;
     const std::string base = std::filesystem::absolute(path).parent_path().string();
     const bool binary = bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0;
@@ -231,8 +250,59 @@ Scene readGltfScene(const std::string& path) {
         binary ? reader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
                                              unsigned(bytes.size()), base)
                : reader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), unsigned(bytes.size()), base);
-    if (!ok) top.fail(cat("not a glTF 2.0 file tinygltf can read: ", err.empty() ? warn : err));
+    if (!ok) Where{path, ""}.fail(cat("not a glTF 2.0 file tinygltf can read: ", err.empty() ? warn : err));
     if (!warn.empty()) logInfo(path, ": tinygltf: ", warn);
+}
+
+std::vector<Vec3> positionsOf(const tinygltf::Model& model, const tinygltf::Primitive& prim, const Where& wp) {
+    const auto position = prim.attributes.find("POSITION");
+    if (position == prim.attributes.end()) wp.fail("no POSITION attribute");
+    const std::vector<double> xyz = readAccessor<double>(model, position->second, 3, wp);
+    std::vector<Vec3> out;
+    for (size_t k = 0; k + 2 < xyz.size(); k += 3) out.emplace_back(xyz[k], xyz[k + 1], xyz[k + 2]);
+    return out;
+}
+
+}  // namespace
+
+void readGltfModel(const std::string& path, tinygltf::Model& model) {
+    readModel(path, readFile(path, "glTF file"), model);
+}
+
+std::vector<Vec3> gltfPrimitivePositions(const tinygltf::Model& model, int mesh, int primitive,
+                                         const std::string& path) {
+    const Where w{path, cat("meshes[", mesh, "] primitive ", primitive)};
+    if (mesh < 0 || size_t(mesh) >= model.meshes.size() || primitive < 0 ||
+        size_t(primitive) >= model.meshes[size_t(mesh)].primitives.size())
+        w.fail("does not exist");
+    return positionsOf(model, model.meshes[size_t(mesh)].primitives[size_t(primitive)], w);
+}
+
+std::vector<std::array<int, 3>> gltfPrimitiveTriangles(const tinygltf::Model& model, int mesh, int primitive,
+                                                       const std::string& path) {
+    const size_t vertices = gltfPrimitivePositions(model, mesh, primitive, path).size();
+    const tinygltf::Primitive& prim = model.meshes[size_t(mesh)].primitives[size_t(primitive)];
+    const Where w{path, cat("meshes[", mesh, "] primitive ", primitive)};
+    std::vector<uint32_t> indices;
+    if (prim.indices >= 0) {
+        indices = readAccessor<uint32_t>(model, prim.indices, 1, w);
+    } else {
+        for (size_t k = 0; k < vertices; ++k) indices.push_back(uint32_t(k));
+    }
+    std::vector<std::array<int, 3>> out;
+    for (size_t k = 0; k + 2 < indices.size(); k += 3) {
+        for (size_t c = 0; c < 3; ++c)
+            if (indices[k + c] >= vertices) w.fail(cat("index ", indices[k + c], " past its ", vertices, " vertices"));
+        out.push_back({int(indices[k]), int(indices[k + 1]), int(indices[k + 2])});
+    }
+    return out;
+}
+
+Scene readGltfScene(const std::string& path) {
+    const std::string bytes = readFile(path, "glTF file");
+    const Where top{path, ""};
+    tinygltf::Model model;
+    readModel(path, bytes, model);
     if (!model.lights.empty() ||
         std::count(model.extensionsUsed.begin(), model.extensionsUsed.end(), "KHR_lights_punctual"))
         top.fail(cat(model.lights.size(),
@@ -322,10 +392,8 @@ Scene readGltfScene(const std::string& path) {
                     wp.fail(cat("primitive mode ", prim.mode,
                                 " (points, lines or strips and fans): only triangles (mode 4) are read; "
                                 "export with triangulated faces"));
-                const auto position = prim.attributes.find("POSITION");
-                if (position == prim.attributes.end()) wp.fail("no POSITION attribute");
-                const std::vector<double> xyz = readAccessor<double>(model, position->second, 3, wp);
-                const size_t vertices = xyz.size() / 3;
+                const std::vector<Vec3> local = positionsOf(model, prim, wp);
+                const size_t vertices = local.size();
                 std::vector<uint32_t> indices;
                 if (prim.indices >= 0) {
                     indices = readAccessor<uint32_t>(model, prim.indices, 1, wp);
@@ -335,7 +403,7 @@ Scene readGltfScene(const std::string& path) {
                 if (indices.size() % 3 != 0 || indices.empty()) wp.fail("no whole triangles");
                 PolygonSoup soup;
                 for (size_t k = 0; k < vertices; ++k) {
-                    soup.vertices.push_back(world * Vec3(xyz[3 * k], xyz[3 * k + 1], xyz[3 * k + 2]));
+                    soup.vertices.push_back(world * local[k]);
                     checkCoordinate(soup.vertices.back(), 1, wp);
                 }
                 for (size_t k = 0; k < indices.size(); k += 3) {
@@ -345,6 +413,8 @@ Scene readGltfScene(const std::string& path) {
                     soup.faces.push_back({int(indices[k]), int(indices[k + 1]), int(indices[k + 2])});
                 }
                 const auto [ours, texCoord] = material(prim.material, wp);
+                if (prim.attributes.count("COLOR_0"))
+                    notes.insert("vertex colours (COLOR_0, a baked light among them) are not used");
                 // Texture coordinates (the set the material's textures read), per face corner.
                 const auto uvAttribute = prim.attributes.find(cat("TEXCOORD_", texCoord));
                 if (uvAttribute != prim.attributes.end()) {
@@ -372,6 +442,7 @@ Scene readGltfScene(const std::string& path) {
                 if (mesh.primitives.size() > 1) name += cat("#", p);
                 o.name = uniqueName(name, objectNames, renamed);
                 o.material = ours;
+                o.sourceNode = index, o.sourcePrimitive = int(p), o.sourceToWorld = world;
                 shapeFromSoup(o, std::move(soup), path, wp);
                 scene.objects.push_back(std::move(o));
             }

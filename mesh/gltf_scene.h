@@ -5,11 +5,27 @@
 // once in the log; what cannot be honoured (other primitive modes, punctual lights) is refused.
 #pragma once
 
+#include <array>
 #include <string>
+#include <vector>
 
 #include "mesh/scene.h"
 
+namespace tinygltf {
+class Model;
+}
+
 namespace penumbra {
+
+// Reads a glTF file into tinygltf's model (its images decoded), or throws Error naming the file.
+void readGltfModel(const std::string& path, tinygltf::Model& model);
+// The POSITION values of primitive `primitive` of mesh `mesh`, in the file's own frame (before any
+// node's transform); throws Error naming the file and the accessor at fault.
+std::vector<Vec3> gltfPrimitivePositions(const tinygltf::Model& model, int mesh, int primitive,
+                                         const std::string& path);
+// Its triangles, as vertex indices (its index accessor, or the vertices in order without one).
+std::vector<std::array<int, 3>> gltfPrimitiveTriangles(const tinygltf::Model& model, int mesh, int primitive,
+                                                       const std::string& path);
 
 // Throws Error naming the file and the node, mesh or material at fault.
 Scene loadGltfScene(const std::string& path);

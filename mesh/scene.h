@@ -21,6 +21,10 @@ struct Material {
     Rgb emission = Rgb::Zero();       // radiance L_e, W sr^-1 m^-2, front face only
     double ior = 1.5;                 // dielectric only
     Rgb transmittance = Rgb::Ones();  // dielectric only
+    // Both faces reflect (and emit): diffuse and mirror materials only. The loader adds each such
+    // object's back as an object of its own (addBackFaces, scene_loader.cpp); a material without it
+    // has a black back face, as the contract has it.
+    bool doubleSided = false;
     // Diffuse only: textures multiplying `reflectance` and `emission` (mesh/texture.h), or null.
     std::shared_ptr<const Texture> reflectanceTexture, emissionTexture;
     bool emits() const { return (emission > 0).any(); }
@@ -65,6 +69,10 @@ struct SceneObject {
     double radius = 0;           // sphere: local radius (scene units)
     // Local-to-world map in metres (scene units -> metres included). Applied to spheres at meshing.
     Eigen::Affine3d toWorld = Eigen::Affine3d::Identity();
+    // Where an object of a glTF file came from (the round trip back out, io/export.h): its node, the
+    // primitive of the node's mesh, and the node's world transform in the file's lengths; -1 else.
+    int sourceNode = -1, sourcePrimitive = -1;
+    Eigen::Affine3d sourceToWorld = Eigen::Affine3d::Identity();
     // Whether the object carries texture coordinates (spheres never do).
     bool hasUv() const {
         return type == ShapeType::Mesh ? !mesh.faceUv.empty() : !uv.empty() && type != ShapeType::Sphere;

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <vector>
@@ -348,7 +349,7 @@ Material parseMaterial(const std::string& name, const Json& j, const std::filesy
     if (!type.is_string()) w.at("type").fail("expected a string");
     const std::string t = type.get<std::string>();
     if (t == "diffuse") {
-        checkKeys(j, w, {"type", "reflectance", "emission", "reflectance_texture", "emission_texture"});
+        checkKeys(j, w, {"type", "reflectance", "emission", "reflectance_texture", "emission_texture", "double_sided"});
         m.type = MaterialType::Diffuse;
         if (j.contains("reflectance_texture"))
             m.reflectanceTexture =
@@ -374,7 +375,7 @@ Material parseMaterial(const std::string& name, const Json& j, const std::filesy
                               " W sr^-1 m^-2 is taken as a unit mistake, not a lamp"));
         }
     } else if (t == "mirror") {
-        checkKeys(j, w, {"type", "reflectance"});
+        checkKeys(j, w, {"type", "reflectance", "double_sided"});
         m.type = MaterialType::Mirror;
         m.reflectance = j.contains("reflectance") ? unitRgb(j["reflectance"], w.at("reflectance")) : Rgb::Ones();
     } else if (t == "dielectric") {
@@ -385,6 +386,10 @@ Material parseMaterial(const std::string& name, const Json& j, const std::filesy
         if (j.contains("transmittance")) m.transmittance = unitRgb(j["transmittance"], w.at("transmittance"));
     } else {
         w.at("type").fail(cat("unknown material type '", t, "' (expected diffuse, mirror or dielectric)"));
+    }
+    if (j.contains("double_sided")) {
+        if (!j["double_sided"].is_boolean()) w.at("double_sided").fail("expected true or false");
+        m.doubleSided = j["double_sided"].get<bool>();
     }
     return m;
 }
@@ -721,10 +726,72 @@ Scene loadJsonScene(const std::string& path) {
     return scene;
 }
 
+// The back of an object: its faces in reverse order, so that its front is the object's back, set
+// back behind it by `d` (along each face's normal; a mesh's vertices along their faces' mean normal):
+// a ray arriving at the object meets the front strictly first, and rays leaving either face start
+// on their own side of both.
+SceneObject backFace(const SceneObject& o, double d) {
+    SceneObject b = o;
+    b.sourceNode = b.sourcePrimitive = -1;  // not a part of the file's own (the round trip skips it)
+    if (o.type == ShapeType::Quad || o.type == ShapeType::Triangle) {
+        const auto& v = o.vertices;
+        const Vec3 n = (o.type == ShapeType::Quad ? (v[2] - v[0]).cross(v[3] - v[1]) : (v[1] - v[0]).cross(v[2] - v[0]))
+                           .normalized();
+        std::reverse(b.vertices.begin() + 1, b.vertices.end());
+        if (!b.uv.empty()) std::reverse(b.uv.begin() + 1, b.uv.end());
+        for (Vec3& p : b.vertices) p -= d * n;
+        return b;
+    }
+    std::vector<Vec3> normal(o.mesh.vertices.size(), Vec3::Zero());
+    for (const auto& f : o.mesh.faces)
+        for (size_t k = 1; k + 1 < f.size(); ++k) {
+            const Vec3& a = o.mesh.vertices[size_t(f[0])];
+            const Vec3 n = (o.mesh.vertices[size_t(f[k])] - a).cross(o.mesh.vertices[size_t(f[k + 1])] - a);
+            for (int i : {f[0], f[k], f[k + 1]}) normal[size_t(i)] += n;
+        }
+    for (size_t i = 0; i < normal.size(); ++i)
+        if (normal[i].squaredNorm() > 0) b.mesh.vertices[i] -= d * normal[i].normalized();
+    for (auto& f : b.mesh.faces) std::reverse(f.begin() + 1, f.end());
+    for (auto& f : b.mesh.faceUv) std::reverse(f.begin() + 1, f.end());
+    return b;
+}
+
+// Double-sided materials (Material::doubleSided): each object's back added as an object of its own,
+// `<name>#back`, right after it, 1e-5 of the scene's diagonal behind (ten times the tracer's ray
+// offset: the two never meet a ray at one distance).
+void addBackFaces(Scene& scene) {
+    Eigen::AlignedBox3d box;
+    for (const SceneObject& o : scene.objects) {
+        for (const Vec3& v : o.vertices) box.extend(v);
+        for (const Vec3& v : o.mesh.vertices) box.extend(v);
+    }
+    std::set<std::string> names;
+    for (const SceneObject& o : scene.objects) names.insert(o.name);
+    std::vector<std::string> renamed, spheres;
+    std::vector<SceneObject> out;
+    for (SceneObject& o : scene.objects) {
+        const bool twin = scene.materialOf(o).doubleSided;
+        if (twin && o.type == ShapeType::Sphere) spheres.push_back(o.name);
+        std::optional<SceneObject> back;
+        if (twin && o.type != ShapeType::Sphere) back = backFace(o, 1e-5 * box.diagonal().norm());
+        out.push_back(std::move(o));
+        if (!back) continue;
+        back->name = uniqueName(out.back().name + "#back", names, renamed);
+        out.push_back(std::move(*back));
+    }
+    if (out.size() > scene.objects.size())
+        logInfo(scene.path, ": ", out.size() - scene.objects.size(),
+                " objects of double-sided materials: each back an object of its own, named '<object>#back'");
+    for (const std::string& s : spheres)
+        logInfo(scene.path, ": sphere '", s, "' of a double-sided material: its inside is not added");
+    scene.objects = std::move(out);
+}
+
 }  // namespace
 
 Scene loadScene(const std::string& path) {
     Scene scene = isGltfPath(path) ? loadGltfScene(path) : isObjPath(path) ? loadObjScene(path) : loadJsonScene(path);
+    addBackFaces(scene);
     for (const SceneObject& o : scene.objects)
         if (scene.materialOf(o).textured() && !o.hasUv())
             logInfo(path, ": object '", o.name, "' has no texture coordinates",

@@ -2,9 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 
 #include "core/error.h"
-#include "core/oiio_module.h"
+#include "core/image_file.h"
 #include "mesh/patches.h"
 
 namespace penumbra {
@@ -104,21 +105,19 @@ double srgbToLinear(double encoded) {
 }
 
 std::shared_ptr<const Texture> readTextureFile(const std::string& path, Wrap wrapU, Wrap wrapV) {
-    const OiioModule& m = oiioModule();
-    char why[512] = "";
-    int w = 0, h = 0, isFloat = 0;
-    if (m.read(path.c_str(), &w, &h, &isFloat, nullptr, why, sizeof why) != 0)
-        throw Error(cat(path, ": cannot read the texture (", why, ")"));
-    if (w <= 0 || h <= 0 || double(w) * double(h) > double(1 << 28))
-        throw Error(cat(path, ": texture of ", w, " x ", h, " texels: at most 2^28 texels are read"));
-    std::vector<float> rgb(size_t(w) * size_t(h) * 3);
-    if (m.read(path.c_str(), &w, &h, &isFloat, rgb.data(), why, sizeof why) != 0)
-        throw Error(cat(path, ": cannot read the texture: ", why));
-    for (float& v : rgb) {
+    // A folder, a device or a pipe (/dev/zero, a FIFO) would hang or exhaust the reader: refused first.
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec))
+        throw Error(cat(path, ": ", std::filesystem::exists(path, ec) ? "not a regular file" : "no such file",
+                        " (a texture must be an image file)"));
+    if (std::filesystem::file_size(path, ec) > (uintmax_t(1) << 30))
+        throw Error(cat(path, ": texture file larger than 1 GiB"));
+    ImagePixels image = readImagePixels(path);
+    for (float& v : image.rgb) {
         if (!std::isfinite(v) || v < 0) throw Error(cat(path, ": texture holds a negative or non-finite value"));
-        if (!isFloat) v = float(srgbToLinear(std::min(double(v), 1.0)));
+        if (image.integer) v = float(srgbToLinear(std::min(double(v), 1.0)));
     }
-    return std::make_shared<const Texture>(path, w, h, std::move(rgb), wrapU, wrapV);
+    return std::make_shared<const Texture>(path, image.width, image.height, std::move(image.rgb), wrapU, wrapV);
 }
 
 }  // namespace penumbra

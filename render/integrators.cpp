@@ -31,10 +31,8 @@ std::vector<Image> renderPathViews(const RenderInputs& in, const std::vector<Cam
 std::vector<Image> renderRadiosityViews(const RenderInputs& in, const std::vector<Camera>& cameras, int spp) {
     const std::shared_ptr<const RayScene> rays = raysOf(in);
     std::vector<Image> images;
-    ViewSettings settings{spp, in.seed};
-    settings.patchRadiosity = in.means;
     for (const Camera& camera : cameras)
-        images.push_back(renderRadiosityView(in.scene, camera, in.patches, rays, in.corners, settings));
+        images.push_back(renderRadiosityView(in.scene, camera, in.patches, rays, in.corners, {spp, in.seed}));
     return images;
 }
 

@@ -10,29 +10,29 @@ Rgb interpolateAt(const PatchSet& patches, size_t patch, double u, double v, con
     return (1 - u) * (1 - v) * c[0] + u * (1 - v) * c[1] + u * v * c[2] + (1 - u) * v * c[3];
 }
 
+CornerValues cornerIrradiance(const Scene& scene, const PatchSet& patches, const CornerValues& corners) {
+    CornerValues out(patches.size());
+    for (size_t i = 0; i < patches.size(); ++i) {
+        const Rgb rho = meanReflectance(scene, patches, i), E = kPi * meanEmission(scene, patches, i);
+        for (size_t k = 0; k < 4; ++k)
+            for (int c = 0; c < 3; ++c)
+                out[i][k][c] = rho[c] > 0 ? std::max(0.0, corners[i][k][c] - E[c]) / rho[c] : 0.0;
+    }
+    return out;
+}
+
 namespace {
 
-// Texture detail finer than the patches: a textured patch shows the irradiance interpolated across
-// the patches (smooth, whatever the texture) times the texel's reflectance over pi, plus its emission
-// texel. The irradiance at a corner comes from the patches' radiosity less their mean emission over
-// their mean reflectance (ViewSettings::patchRadiosity), interpolated as the display values are;
-// interpolating radiosity itself smeared a dark patch's light onto a bright one (a checker floor's
-// dark blocks read 1.1-2.2 times their closed form, its bright ones 0.67-0.97).
+// Texture detail finer than the patches: a textured patch shows the irradiance at its corners
+// (cornerIrradiance), interpolated across it, times the texel's reflectance over pi, plus its emission
+// texel. Dividing the interpolated radiosity by the patch's mean reflectance instead smeared a dark
+// patch's light onto a bright one (a checker floor's dark blocks read 1.1-2.2 times their closed
+// form, its bright ones 0.67-0.97).
 class TextureDetail {
 public:
-    TextureDetail(const Scene& scene, const PatchSet& patches, const CornerValues& corners,
-                  const std::vector<Rgb>* patchRadiosity)
+    TextureDetail(const Scene& scene, const PatchSet& patches, const CornerValues& corners)
         : scene_(scene), patches_(patches) {
-        if (!patches.hasUv() || !scene.hasTextures()) return;
-        std::vector<Rgb> irradiance(patches.size(), Rgb::Zero());
-        for (size_t i = 0; i < patches.size(); ++i) {
-            const Rgb B = patchRadiosity && patchRadiosity->size() == patches.size()
-                              ? (*patchRadiosity)[i]
-                              : Rgb((corners[i][0] + corners[i][1] + corners[i][2] + corners[i][3]) / 4);
-            const Rgb rho = meanReflectance(scene, patches, i), E = kPi * meanEmission(scene, patches, i);
-            for (int c = 0; c < 3; ++c) irradiance[i][c] = rho[c] > 0 ? std::max(0.0, B[c] - E[c]) / rho[c] : 0.0;
-        }
-        irradiance_ = interpolateCorners(patches, irradiance);
+        if (patches.hasUv() && scene.hasTextures()) irradiance_ = cornerIrradiance(scene, patches, corners);
     }
     // Radiance `L` interpolated from the solution at Embree's (u, v) on patch p, with the texture.
     Rgb operator()(size_t p, double u, double v, const Rgb& L) const {
@@ -85,7 +85,7 @@ Image renderRadiosityView(const Scene& scene, const Camera& camera, const PatchS
     // Mirrors and glass are followed by the tracer, which knows the materials (and the exact spheres).
     const std::unique_ptr<const SceneTracer> tracer =
         scene.hasSpecular() ? std::make_unique<const SceneTracer>(scene, patches, rays) : nullptr;
-    const TextureDetail detail(scene, patches, corners, settings.patchRadiosity);
+    const TextureDetail detail(scene, patches, corners);
     return renderPixelsSampled(
         camera, settings.samplesPerPixel, settings.seed, "view",
         [&](const Vec3& origin, const Vec3& dir, PixelSampler&) -> Rgb {

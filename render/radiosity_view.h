@@ -21,15 +21,17 @@ struct ViewSettings {
     uint64_t seed = 1;
     int maxSpecularDepth = 16;    // mirror and glass bounces followed (as the final gather's)
     double minThroughput = 1e-3;  // specular branches carrying less are dropped
-    // The radiosity of each patch (SolveResult::solution.display), or null. Textured surfaces show
-    // the irradiance interpolated from it times the texel; without it, from the corners' means,
-    // which carry the neighbours' reflectances across texture edges.
-    const std::vector<Rgb>* patchRadiosity = nullptr;
 };
 
 Image renderRadiosityView(const Scene& scene, const Camera& camera, const PatchSet& patches,
                           const std::shared_ptr<const RayScene>& rays,
                           const std::vector<std::array<Rgb, 4>>& cornerRadiosity, const ViewSettings& settings);
+
+// The irradiance at every patch corner, W m^-2, from the displayed corner radiosity: (B - E) / rho
+// with the patch's mean emission and reflectance (0 where it reflects nothing). What a texture
+// multiplies (the radiosity view, the exported light). The corners average the irradiance around each
+// vertex (vertex_radiosity.cpp), so this is the light at the vertex whatever the patch's reflectance.
+CornerValues cornerIrradiance(const Scene& scene, const PatchSet& patches, const CornerValues& cornerRadiosity);
 
 // Radiosity at parameters (u, v) of a patch hit, from its corner values (Embree's quad coordinates;
 // barycentric on triangles).

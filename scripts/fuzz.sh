@@ -17,8 +17,8 @@ else
 fi
 CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPENUMBRA_FUZZ=ON \
   -DPENUMBRA_TESTS=OFF "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" >/dev/null
-cmake --build build-fuzz --target fuzz_scene fuzz_mesh fuzz_solution -j "$(nproc)"
-for target in scene mesh solution; do
+cmake --build build-fuzz --target fuzz_scene fuzz_mesh fuzz_import fuzz_solution -j "$(nproc)"
+for target in scene mesh import solution; do
   work=build-fuzz/corpus-$target
   rm -rf "$work" && mkdir -p "$work" && cp tests/fuzz/corpus/$target/* "$work"/
   (cd build-fuzz && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \

@@ -11,8 +11,10 @@
 
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <numeric>
 
 #include "fixtures.h"
 #include "io/image_io.h"
@@ -192,4 +194,325 @@ TEST(ImageIo, WrittenImagesReadBackAsWritten) {
             for (int c = 0; c < 3; ++c) EXPECT_EQ(grey.at(x, y)[c], 1 + x + 4 * y) << x << " " << y << " " << c;
     EXPECT_THROW(readLinearImage(dir + "/missing.exr"), Error);
     EXPECT_THROW(readLinearImage(dir + "/missing.png"), Error);
+}
+
+namespace {
+
+// Adds `values` (float, `components` each) to buffer 0 as a new accessor; returns its index.
+int addAccessor(tinygltf::Model& model, const std::vector<float>& values, int components, int type) {
+    auto& data = model.buffers[0].data;
+    const size_t offset = data.size();
+    data.resize(offset + values.size() * sizeof(float));
+    std::memcpy(data.data() + offset, values.data(), values.size() * sizeof(float));
+    tinygltf::BufferView view;
+    view.buffer = 0, view.byteOffset = offset, view.byteLength = values.size() * sizeof(float);
+    model.bufferViews.push_back(view);
+    tinygltf::Accessor a;
+    a.bufferView = int(model.bufferViews.size()) - 1;
+    a.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+    a.count = values.size() / size_t(components);
+    a.type = type;
+    if (components == 3) {
+        a.minValues = {1e30, 1e30, 1e30}, a.maxValues = {-1e30, -1e30, -1e30};
+        for (size_t k = 0; k < values.size(); ++k) {
+            a.minValues[k % 3] = std::min(a.minValues[k % 3], double(values[k]));
+            a.maxValues[k % 3] = std::max(a.maxValues[k % 3], double(values[k]));
+        }
+    }
+    model.accessors.push_back(a);
+    return int(model.accessors.size()) - 1;
+}
+
+// A user's glTF of test::lampOverFloor: the floor a mesh of 8 x 8 quads (two triangles each) placed by
+// two nodes, "floor" and "floor-east" (2 m along x), and the lamp, all children of a node "room"
+// lifted 1 m and put back by its children; a diffuse floor of base colour 0.5, a black lamp emitting
+// 1 x strength 10.
+void writeUsersGltf(const std::string& path) {
+    tinygltf::Model model;
+    model.asset.version = "2.0";
+    model.buffers.resize(1);
+    const auto mesh = [&](const std::vector<float>& xyz, const std::vector<float>& indices, int material,
+                          const std::string& name) {
+        tinygltf::Primitive p;
+        p.attributes["POSITION"] = addAccessor(model, xyz, 3, TINYGLTF_TYPE_VEC3);
+        std::vector<uint32_t> idx(indices.begin(), indices.end());
+        auto& data = model.buffers[0].data;
+        const size_t offset = data.size();
+        data.resize(offset + idx.size() * 4);
+        std::memcpy(data.data() + offset, idx.data(), idx.size() * 4);
+        tinygltf::BufferView view;
+        view.buffer = 0, view.byteOffset = offset, view.byteLength = idx.size() * 4;
+        model.bufferViews.push_back(view);
+        tinygltf::Accessor a;
+        a.bufferView = int(model.bufferViews.size()) - 1;
+        a.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+        a.count = idx.size();
+        a.type = TINYGLTF_TYPE_SCALAR;
+        model.accessors.push_back(a);
+        p.indices = int(model.accessors.size()) - 1;
+        p.material = material;
+        p.mode = TINYGLTF_MODE_TRIANGLES;
+        tinygltf::Mesh m;
+        m.name = name;
+        m.primitives.push_back(p);
+        model.meshes.push_back(m);
+    };
+    std::vector<float> floor, floorIndices;
+    for (int j = 0; j <= 8; ++j)
+        for (int i = 0; i <= 8; ++i) floor.insert(floor.end(), {-1 + i / 4.0f, -1 + j / 4.0f, 0});
+    for (int j = 0; j < 8; ++j)
+        for (int i = 0; i < 8; ++i) {
+            const float a = float(9 * j + i), b = a + 1, c = a + 10, d = a + 9;
+            floorIndices.insert(floorIndices.end(), {a, b, c, a, c, d});
+        }
+    mesh(floor, floorIndices, 0, "floor grid");
+    mesh({-0.1f, -0.1f, 1, -0.1f, 0.1f, 1, 0.1f, 0.1f, 1, 0.1f, -0.1f, 1}, {0, 1, 2, 0, 2, 3}, 1, "lamp square");
+    tinygltf::Material white, lamp;
+    white.name = "white";
+    white.pbrMetallicRoughness.baseColorFactor = {0.5, 0.5, 0.5, 1};
+    white.pbrMetallicRoughness.metallicFactor = 0;
+    lamp.name = "lamp";
+    lamp.pbrMetallicRoughness.baseColorFactor = {0, 0, 0, 1};
+    lamp.pbrMetallicRoughness.metallicFactor = 0;
+    lamp.emissiveFactor = {1, 1, 1};
+    tinygltf::Value::Object strength;
+    strength["emissiveStrength"] = tinygltf::Value(10.0);
+    lamp.extensions["KHR_materials_emissive_strength"] = tinygltf::Value(strength);
+    model.extensionsUsed.push_back("KHR_materials_emissive_strength");
+    model.materials = {white, lamp};
+    tinygltf::Node room, floorNode, eastNode, lampNode;
+    room.name = "room", room.translation = {0, 0, 1}, room.children = {1, 2, 3};
+    floorNode.name = "floor", floorNode.mesh = 0, floorNode.translation = {0, 0, -1};
+    eastNode.name = "floor-east", eastNode.mesh = 0, eastNode.translation = {2, 0, -1};
+    lampNode.name = "lamp", lampNode.mesh = 1, lampNode.translation = {0, 0, -1};
+    model.nodes = {room, floorNode, eastNode, lampNode};
+    tinygltf::Scene scene;
+    scene.nodes = {0};
+    model.scenes = {scene};
+    model.defaultScene = 0;
+    tinygltf::TinyGLTF writer;
+    ASSERT_TRUE(writer.WriteGltfSceneToFile(&model, path, true, true, false, true));
+}
+
+}  // namespace
+
+// The round trip (issue 17): a user's glTF solved and exported comes back as the user's file, with
+// the light on its own vertices. Same nodes by name, in order, with the same vertex counts; the mesh
+// two nodes shared copied for the second (each is lit on its own); the floor's material unlit, the
+// lamp's not; and at every floor vertex COLOR_0 / exposure = E / pi, the irradiance the lamp gives
+// there in closed form (Howell's point-to-rectangle factor), _RADIANCE = 0.5 E / pi. The file then
+// reads in again as a scene of the same objects.
+TEST(Export, RoundTripGivesTheUsersGltfBackLitOnItsOwnVertices) {
+    const std::string dir = test::tempDir() + "/round-trip";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const std::string scene = dir + "/users.glb";
+    writeUsersGltf(scene);
+    ASSERT_EQ(runCli(cat("solve ", scene, " --out ", dir, "/solved --patches 400")), 0);
+    // Three stops down: the vertices under the lamp stay below 1.
+    ASSERT_EQ(runCli(cat("export ", dir, "/solved --out ", dir, "/lit.glb --exposure -3")), 0);
+
+    tinygltf::Model before, after;
+    ASSERT_TRUE(loadGlb(scene, before));
+    ASSERT_TRUE(loadGlb(dir + "/lit.glb", after));
+    ASSERT_EQ(after.nodes.size(), before.nodes.size());
+    for (size_t n = 0; n < before.nodes.size(); ++n) EXPECT_EQ(after.nodes[n].name, before.nodes[n].name);
+    EXPECT_EQ(after.meshes.size(), before.meshes.size() + 1) << "the floor mesh copied for its second node";
+    EXPECT_NE(after.nodes[1].mesh, after.nodes[2].mesh);
+    ASSERT_EQ(after.materials.size(), 2u);
+    EXPECT_EQ(after.materials[0].extensions.count("KHR_materials_unlit"), 1u);
+    EXPECT_EQ(after.materials[1].extensions.count("KHR_materials_unlit"), 0u) << "the lamp stays lit";
+    const double exposure = after.asset.extras.Get("penumbra").Get("exposure").GetNumberAsDouble();
+    ASSERT_GT(exposure, 0);
+
+    double worst = 0;
+    size_t checked = 0;
+    for (size_t n : {size_t(1), size_t(2)}) {
+        const tinygltf::Primitive& p = after.meshes.at(size_t(after.nodes[n].mesh)).primitives.at(0);
+        const std::vector<float> position = vec3Attribute(after, p, "POSITION"),
+                                 colour = vec3Attribute(after, p, "COLOR_0"),
+                                 radiance = vec3Attribute(after, p, "_RADIANCE");
+        ASSERT_EQ(position.size(), 81u * 3) << "the user's 81 vertices, not the patches'";
+        ASSERT_EQ(colour.size(), position.size());
+        ASSERT_EQ(radiance.size(), position.size());
+        const double east = n == 2 ? 2 : 0;
+        for (size_t v = 0; v < 81; ++v) {
+            const Vec3 x(position[3 * v] + east, position[3 * v + 1], position[3 * v + 2]);
+            const double light = test::unshadowedFloor(x) / (0.5 * kPi);  // E / pi
+            if (light * exposure >= 1) continue;                          // clipped at 1
+            worst = std::max(worst, std::abs(colour[3 * v] / exposure / light - 1));
+            worst = std::max(worst, std::abs(radiance[3 * v] / (0.5 * light) - 1));
+            ++checked;
+        }
+    }
+    EXPECT_GT(checked, 150u);
+    EXPECT_LT(worst, 0.01) << "worst relative deviation of a vertex's light from the closed form";
+    std::printf("round trip: %zu vertices, worst relative deviation %.5f\n", checked, worst);
+
+    const Scene again = loadScene(dir + "/lit.glb");
+    ASSERT_EQ(again.objects.size(), 3u);
+    EXPECT_EQ(again.objects[0].name, "floor");
+    EXPECT_EQ(again.objects[1].name, "floor-east");
+    EXPECT_EQ(again.objects[2].name, "lamp");
+}
+
+// Export of a JSON scene's solve with --geometry scene is refused by name: there is no file of the
+// user's to give back.
+TEST(Export, RoundTripOfAJsonSceneIsRefused) {
+    const std::string dir = test::tempDir() + "/round-trip-json";
+    fs::remove_all(dir);
+    const std::string scene = test::writeText("lamp-floor-json.json", test::lampOverFloor(false));
+    ASSERT_EQ(runCli(cat("solve ", scene, " --out ", dir, " --patches 100")), 0);
+    EXPECT_NE(runCli(cat("export ", dir, " --out ", dir, "/x.glb --geometry scene")), 0);
+    EXPECT_FALSE(fs::exists(dir + "/x.glb"));
+}
+
+// Issue 18: the patches' export of a scene with a mirror and a glass ball carries them as glTF's own
+// materials (a mirror metallic 1, roughness 0, tinted; glass KHR_materials_transmission with
+// KHR_materials_ior), in primitives without colours, so that a glTF viewer shows them and not black;
+// read back by our importer they are a mirror of the same tint and glass of the same index.
+TEST(Export, MirrorsAndGlassGoOutAsGltfMaterialsAndComeBack) {
+    const std::string dir = test::tempDir() + "/export-specular";
+    fs::remove_all(dir);
+    const std::string scene = test::writeText("export-specular.json", R"({
+      "materials": {"lamp": {"type": "diffuse", "reflectance": 0, "emission": 10},
+                    "floor": {"type": "diffuse", "reflectance": 0.5},
+                    "chrome": {"type": "mirror", "reflectance": [0.9, 0.8, 0.7]},
+                    "glass": {"type": "dielectric", "ior": 1.33}},
+      "objects": [
+        {"name": "floor", "type": "quad", "material": "floor", "vertices": [[-1,-1,0],[1,-1,0],[1,1,0],[-1,1,0]]},
+        {"name": "lamp", "type": "quad", "material": "lamp", "vertices": [[-0.1,-0.1,1],[-0.1,0.1,1],[0.1,0.1,1],[0.1,-0.1,1]]},
+        {"name": "mirror", "type": "quad", "material": "chrome", "vertices": [[0.9,-1,0],[0.9,1,0],[0.9,1,1],[0.9,-1,1]]},
+        {"name": "ball", "type": "sphere", "material": "glass", "center": [-0.5, 0, 0.3], "radius": 0.2}]})");
+    ASSERT_EQ(runCli(cat("solve ", scene, " --out ", dir, " --patches 200")), 0);
+    ASSERT_EQ(runCli(cat("export ", dir, " --out ", dir, "/scene.glb")), 0);
+
+    tinygltf::Model model;
+    ASSERT_TRUE(loadGlb(dir + "/scene.glb", model));
+    int mirrors = 0, glasses = 0;
+    for (const tinygltf::Primitive& p : model.meshes.at(0).primitives) {
+        const tinygltf::Material& m = model.materials.at(size_t(p.material));
+        if (m.extensions.count("KHR_materials_transmission")) {
+            ++glasses;
+            EXPECT_DOUBLE_EQ(m.extensions.at("KHR_materials_ior").Get("ior").GetNumberAsDouble(), 1.33);
+            EXPECT_EQ(p.attributes.count("COLOR_0"), 0u);
+        } else if (m.pbrMetallicRoughness.metallicFactor == 1) {
+            ++mirrors;
+            EXPECT_EQ(m.pbrMetallicRoughness.roughnessFactor, 0);
+            EXPECT_DOUBLE_EQ(m.pbrMetallicRoughness.baseColorFactor[1], 0.8);
+            EXPECT_EQ(p.attributes.count("COLOR_0"), 0u);
+        } else {
+            EXPECT_EQ(p.attributes.count("COLOR_0"), 1u) << "the diffuse patches show their radiance";
+        }
+    }
+    EXPECT_EQ(mirrors, 1);
+    EXPECT_EQ(glasses, 1);
+
+    const Scene back = loadScene(dir + "/scene.glb");
+    int mirror = 0, glass = 0;
+    for (const Material& m : back.materials) {
+        if (m.type == MaterialType::Mirror) {
+            ++mirror;
+            EXPECT_NEAR(m.reflectance[0], 0.9, 1e-12);
+            EXPECT_NEAR(m.reflectance[2], 0.7, 1e-12);
+        }
+        if (m.type == MaterialType::Dielectric) {
+            ++glass;
+            EXPECT_DOUBLE_EQ(m.ior, 1.33);
+        }
+    }
+    EXPECT_EQ(mirror, 1);
+    EXPECT_EQ(glass, 1);
+}
+
+// The round trip's lightmaps (`export --lightmap 128`): each primitive's layout on TEXCOORD_1 puts
+// its charts (triangles joined by shared vertices, found here from the file alone) in rectangles no
+// two of which overlap, inside the image; and a floor texel whose centre lies inside a triangle holds
+// the light there, E / pi, as the closed form of the lamp over the floor gives it (decoded from its
+// sRGB byte and the stated exposure; within 3%, and 2/255 for the bytes' steps).
+TEST(Export, LightmapChartsDoNotOverlapAndHoldTheLightAtTheirPoints) {
+    const std::string dir = test::tempDir() + "/lightmap";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const std::string scene = dir + "/users.glb";
+    writeUsersGltf(scene);
+    ASSERT_EQ(runCli(cat("solve ", scene, " --out ", dir, "/solved --patches 400")), 0);
+    ASSERT_EQ(runCli(cat("export ", dir, "/solved --out ", dir, "/lit.glb --lightmap 128")), 0);
+    tinygltf::Model model;
+    ASSERT_TRUE(loadGlb(dir + "/lit.glb", model));
+    const double exposure = model.asset.extras.Get("penumbra").Get("exposure").GetNumberAsDouble();
+    const auto decode = [](int byte) {
+        const double c = byte / 255.0;
+        return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
+    };
+    size_t texelsChecked = 0;
+    double worst = -1, largest = 0;
+    for (size_t n : {size_t(1), size_t(2), size_t(3)}) {
+        const tinygltf::Primitive& p = model.meshes.at(size_t(model.nodes[n].mesh)).primitives.at(0);
+        ASSERT_TRUE(p.extras.Has("penumbra_lightmap")) << model.nodes[n].name;
+        const int texture = p.extras.Get("penumbra_lightmap").Get("texture").GetNumberAsInt();
+        const tinygltf::Image& image = model.images.at(size_t(model.textures.at(size_t(texture)).source));
+        ASSERT_EQ(image.width, 128);
+        ASSERT_EQ(image.height, 128);
+        const auto it = p.attributes.find("TEXCOORD_1");
+        ASSERT_NE(it, p.attributes.end());
+        const tinygltf::Accessor& a = model.accessors[size_t(it->second)];
+        const tinygltf::BufferView& v = model.bufferViews[size_t(a.bufferView)];
+        std::vector<float> uv(2 * a.count);
+        std::memcpy(uv.data(), model.buffers[0].data.data() + v.byteOffset + a.byteOffset, uv.size() * sizeof(float));
+        const tinygltf::Accessor& ia = model.accessors[size_t(p.indices)];
+        const tinygltf::BufferView& iv = model.bufferViews[size_t(ia.bufferView)];
+        std::vector<uint32_t> index(ia.count);
+        ASSERT_EQ(ia.componentType, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT);
+        std::memcpy(index.data(), model.buffers[0].data.data() + iv.byteOffset + ia.byteOffset, index.size() * 4);
+        const std::vector<float> position = vec3Attribute(model, p, "POSITION");
+        // Charts: triangles joined by shared vertices; their rectangles in texels, pairwise apart.
+        std::vector<int> chart(a.count);
+        std::iota(chart.begin(), chart.end(), 0);
+        std::function<int(int)> root = [&](int i) {
+            return chart[size_t(i)] == i ? i : chart[size_t(i)] = root(chart[size_t(i)]);
+        };
+        for (size_t t = 0; t + 2 < index.size(); t += 3)
+            for (int k = 1; k < 3; ++k) chart[size_t(root(int(index[t + size_t(k)])))] = root(int(index[t]));
+        std::map<int, Eigen::AlignedBox2d> boxes;
+        for (size_t i = 0; i < a.count; ++i) boxes[root(int(i))].extend(Vec2(uv[2 * i], uv[2 * i + 1]) * 128.0);
+        for (const auto& [c, box] : boxes) {
+            EXPECT_GE(box.min().minCoeff(), 0);
+            EXPECT_LE(box.max().maxCoeff(), 128);
+            for (const auto& [d, other] : boxes)
+                if (c < d) {
+                    EXPECT_FALSE(box.intersects(other)) << model.nodes[n].name << ": charts overlap";
+                }
+        }
+        if (n == 3) continue;  // the lamp: its own light is its emission, not checked here
+        const double east = n == 2 ? 2 : 0;
+        for (size_t t = 0; t + 2 < index.size(); t += 3) {
+            std::array<Vec2, 3> q;
+            std::array<Vec3, 3> x;
+            for (size_t k = 0; k < 3; ++k) {
+                const size_t i = index[t + k];
+                q[k] = Vec2(uv[2 * i], uv[2 * i + 1]) * 128.0;
+                x[k] = Vec3(position[3 * i] + east, position[3 * i + 1], position[3 * i + 2]);
+            }
+            const double area = (q[1] - q[0]).x() * (q[2] - q[0]).y() - (q[1] - q[0]).y() * (q[2] - q[0]).x();
+            for (int py = 0; py < 128; ++py)
+                for (int px = 0; px < 128; ++px) {
+                    const Vec2 c(px + 0.5, py + 0.5);
+                    const double b1 = ((c - q[0]).x() * (q[2] - q[0]).y() - (c - q[0]).y() * (q[2] - q[0]).x()) / area;
+                    const double b2 = ((q[1] - q[0]).x() * (c - q[0]).y() - (q[1] - q[0]).y() * (c - q[0]).x()) / area;
+                    if (b1 < 0.01 || b2 < 0.01 || 1 - b1 - b2 < 0.01) continue;
+                    const Vec3 point = (1 - b1 - b2) * x[0] + b1 * x[1] + b2 * x[2];
+                    const double expected = std::min(1.0, exposure * test::unshadowedFloor(point) / (0.5 * kPi));
+                    const size_t at = (size_t(py) * 128 + size_t(px)) * size_t(image.component);
+                    const double got = decode(image.image[at]);
+                    worst = std::max(worst, std::abs(got - expected) - 0.03 * expected - 2.0 / 255);
+                    if (expected > 0.05) largest = std::max(largest, std::abs(got / expected - 1));
+                    ++texelsChecked;
+                }
+        }
+    }
+    EXPECT_GT(texelsChecked, 2000u);
+    EXPECT_LE(worst, 0) << "a texel off the closed form by more than 3% and 2/255";
+    std::printf("lightmap: %zu texels, largest relative deviation where E/pi x exposure > 0.05: %.4f\n", texelsChecked,
+                largest);
 }

@@ -292,3 +292,35 @@ TEST(Import, WhatAGltfCannotGiveIsRefusedByName) {
         EXPECT_FALSE(fs::exists(out)) << out;
     }
 }
+
+// glTF's doubleSided, and our JSON's "double_sided": both faces reflect and emit. In the furnace
+// (every surface emits 1 and reflects rho), a panel standing in the middle of the room holds
+// B = pi / (1 - rho) on both its faces only if its back reflects and emits as its front does: with
+// a one-sided panel (the back black, as the contract has a back face) the room around it falls below
+// the closed form. Its back is an object of its own, "panel#back".
+TEST(Import, ADoubleSidedPanelKeepsTheFurnaceAndAOneSidedOneDoesNot) {
+    const double rho = 0.5, expected = kPi / (1 - rho);
+    const auto furnace = [&](bool doubleSided) {
+        const std::string panel = cat(R"({"type": "diffuse", "reflectance": )", rho,
+                                      R"(, "emission": 1, "double_sided": )", doubleSided ? "true" : "false", "}");
+        return test::furnaceCube(
+            rho, panel, false,
+            R"(, {"name": "panel", "type": "quad", "material": "spec", "vertices": [[0.5,0.1,0.2],[0.5,0.9,0.2],[0.5,0.9,0.8],[0.5,0.1,0.8]]})");
+    };
+    SolveOptions o;
+    o.meshing.targetPatches = 600;
+    o.solverSettings.tolerance = 1e-9;
+    o.solverSettings.maxIterations = 100000;
+    const Scene twoSided = test::sceneFromJson(furnace(true), "double-sided-furnace.json");
+    ASSERT_EQ(twoSided.objects.size(), 8u);
+    EXPECT_EQ(twoSided.objects[7].name, "panel#back");
+    const SolveResult r = solveScene(twoSided, o);
+    double worst = 0;
+    for (const Rgb& B : r.solution.B) worst = std::max(worst, std::abs(B[0] / expected - 1));
+    EXPECT_LT(worst, 0.005) << "furnace with a double-sided panel: B off pi / (1 - rho)";
+
+    const SolveResult one = solveScene(test::sceneFromJson(furnace(false), "one-sided-furnace.json"), o);
+    double lowest = 1e300;
+    for (const Rgb& B : one.solution.B) lowest = std::min(lowest, B[0] / expected);
+    EXPECT_LT(lowest, 0.95) << "a one-sided panel's black back should darken the room";
+}

@@ -80,6 +80,9 @@ for name, m in scene["materials"].items():
         bsdf.inputs["Transmission"].default_value = 1
         bsdf.inputs["Roughness"].default_value = 0
         bsdf.inputs["IOR"].default_value = m["ior"]
+    # Our materials are one-sided unless they say double_sided: Blender's backface culling is what
+    # its glTF exporter writes as doubleSided false.
+    mat.use_backface_culling = not m.get("double_sided", False)
     materials[name] = mat
 
 for o in scene["objects"]:

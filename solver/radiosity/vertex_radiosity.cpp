@@ -9,10 +9,14 @@
 namespace penumbra {
 namespace {
 
-// One value per vertex and normal group: the area-weighted mean of what the patches around it found
-// there (`own`, per patch and corner); hanging vertices take their coarser edge's.
-CornerValues meanAtVertices(const PatchSet& p, const std::vector<std::vector<int>>& around, const CornerValues& own,
-                            double creaseDeg) {
+// The radiosity at every patch corner, E + rho H, H one irradiance per vertex and normal group: the
+// area-weighted mean of what the patches around it found there (`own`, per patch and corner);
+// hanging vertices take their coarser edge's. Averaging the irradiance, not the radiosity, keeps each
+// patch's own reflectance at its corners: a textured floor's dark tiles took their bright neighbours'
+// radiosity otherwise (untextured, a vertex's patches share one reflectance and the two agree).
+CornerValues radiosityAtVertices(const PatchSet& p, const RadiositySystem& s,
+                                 const std::vector<std::vector<int>>& around, const CornerValues& own,
+                                 double creaseDeg) {
     const double cosCrease = std::cos(creaseDeg * kPi / 180);
     CornerValues out(p.size());
     for (size_t i = 0; i < p.size(); ++i)
@@ -31,6 +35,8 @@ CornerValues meanAtVertices(const PatchSet& p, const std::vector<std::vector<int
             out[i][size_t(k)] = weight > 0 ? Rgb(sum / weight) : own[i][size_t(k)];
         }
     joinHangingVertices(p, around, out, creaseDeg);
+    for (size_t i = 0; i < p.size(); ++i)
+        for (Rgb& value : out[i]) value = s.emission[i] + s.reflectance[i] * value;
     return out;
 }
 
@@ -198,7 +204,7 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
             prepareTracingThread();
             for (int64_t ii = begin; ii < end; ++ii) {
                 const size_t i = size_t(ii);
-                for (int k = 0; k < 4; ++k) own[i][size_t(k)] = s.emission[i];
+                for (int k = 0; k < 4; ++k) own[i][size_t(k)] = Rgb::Zero();
                 if (s.specular[i]) continue;
                 const Rgb viaSpecular = s.transport.incoming(i, B);
                 double patchShare = 0;
@@ -208,13 +214,13 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
                     const AtVertex at = atVertex.at(i, k);
                     const Rgb specular =
                         patchShare > 0 ? Rgb(viaSpecular * (at.specularShare / patchShare)) : Rgb::Zero();
-                    own[i][size_t(k)] = s.emission[i] + s.reflectance[i] * (at.diffuse + specular);
+                    own[i][size_t(k)] = at.diffuse + specular;
                 }
                 if (p.isTriangle(i)) own[i][3] = own[i][2];
             }
         },
         16);
-    return meanAtVertices(p, around, own, creaseDeg);
+    return radiosityAtVertices(p, s, around, own, creaseDeg);
 }
 
 CornerValues directCorners(const PatchSet& p, const RadiositySystem& s, const FormFactorMatrix& F,
@@ -237,7 +243,7 @@ CornerValues directCorners(const PatchSet& p, const RadiositySystem& s, const Fo
             prepareTracingThread();
             for (int64_t ii = begin; ii < end; ++ii) {
                 const size_t i = size_t(ii);
-                for (int k = 0; k < 4; ++k) own[i][size_t(k)] = s.emission[i];
+                for (int k = 0; k < 4; ++k) own[i][size_t(k)] = Rgb::Zero();
                 if (s.specular[i]) continue;
                 // What the patch gathers from elsewhere than the small sources, as the solve found it.
                 Rgb direct = Rgb::Zero();
@@ -245,13 +251,13 @@ CornerValues directCorners(const PatchSet& p, const RadiositySystem& s, const Fo
                 const Rgb rest = H[i] - direct;
                 for (int k = 0; k < p.cornerCount[i]; ++k) {
                     const Rgb atVertex = directAt.at(i, k);
-                    own[i][size_t(k)] = s.emission[i] + s.reflectance[i] * (rest + atVertex).max(0.0);
+                    own[i][size_t(k)] = (rest + atVertex).max(0.0);
                 }
                 if (p.isTriangle(i)) own[i][3] = own[i][2];
             }
         },
         16);
-    return meanAtVertices(p, around, own, creaseDeg);
+    return radiosityAtVertices(p, s, around, own, creaseDeg);
 }
 
 CornerValues indirectCorners(const PatchSet& p, const RadiositySystem& s, const FormFactorMatrix& F,
