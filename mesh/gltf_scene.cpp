@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "core/error.h"
@@ -216,6 +217,33 @@ std::vector<T> readAccessor(const tinygltf::Model& model, int index, int compone
             }
         }
     return out;
+}
+
+// The sphere (centre, radius; world space) a primitive's triangles stand for: at least 48 vertices,
+// every one within 1e-4 of the radius from the centre of their box, and every normal (`normals`, the
+// file's, in its own frame) within 0.5 degree of the direction out from the centre: a smooth-shaded
+// sphere, as Blender's UV and ico spheres are. Taken as the exact sphere its facets approximate (a
+// mirror ball's flat facets mirrored the room in pieces); a faceted one, with flat normals, stays a
+// mesh.
+std::optional<std::pair<Vec3, double>> smoothSphere(const PolygonSoup& soup, const std::vector<double>& normals,
+                                                    const Eigen::Affine3d& world) {
+    const size_t n = soup.vertices.size();
+    if (n < 48 || normals.size() != 3 * n) return std::nullopt;
+    Eigen::AlignedBox3d box;
+    for (const Vec3& v : soup.vertices) box.extend(v);
+    const Vec3 centre = box.center();
+    double radius = 0;
+    for (const Vec3& v : soup.vertices) radius += (v - centre).norm() / double(n);
+    if (!(radius > 0)) return std::nullopt;
+    const Eigen::Matrix3d normalMatrix = world.linear().inverse().transpose();
+    for (size_t k = 0; k < n; ++k) {
+        const Vec3 out = soup.vertices[k] - centre;
+        if (std::abs(out.norm() - radius) > 1e-4 * radius) return std::nullopt;
+        const Vec3 normal = normalMatrix * Vec3(normals[3 * k], normals[3 * k + 1], normals[3 * k + 2]);
+        if (!(normal.norm() > 0) || normal.normalized().dot(out / out.norm()) < std::cos(0.5 * kPi / 180))
+            return std::nullopt;
+    }
+    return std::make_pair(centre, radius);
 }
 
 }  // namespace
@@ -443,7 +471,21 @@ Scene readGltfScene(const std::string& path) {
                 o.name = uniqueName(name, objectNames, renamed);
                 o.material = ours;
                 o.sourceNode = index, o.sourcePrimitive = int(p), o.sourceToWorld = world;
-                shapeFromSoup(o, std::move(soup), path, wp);
+                const auto normals = prim.attributes.find("NORMAL");
+                const std::optional<std::pair<Vec3, double>> ball =
+                    normals == prim.attributes.end()
+                        ? std::nullopt
+                        : smoothSphere(soup, readAccessor<double>(model, normals->second, 3, wp), world);
+                if (ball) {
+                    o.type = ShapeType::Sphere;
+                    o.center = ball->first;
+                    o.radius = ball->second;
+                    notes.insert(
+                        "meshes whose vertices lie on a sphere, with normals pointing out from its centre (a "
+                        "smooth-shaded sphere), are taken as that sphere");
+                } else {
+                    shapeFromSoup(o, std::move(soup), path, wp);
+                }
                 scene.objects.push_back(std::move(o));
             }
         }

@@ -516,3 +516,66 @@ TEST(Export, LightmapChartsDoNotOverlapAndHoldTheLightAtTheirPoints) {
     std::printf("lightmap: %zu texels, largest relative deviation where E/pi x exposure > 0.05: %.4f\n", texelsChecked,
                 largest);
 }
+
+// A smooth-shaded sphere in a glTF (a UV sphere's vertices on one sphere, its normals radial) is read
+// as that sphere; the same vertices with flat normals (each face's own: a faceted ball meant as one)
+// stay a mesh.
+TEST(Import, ASmoothShadedSphereMeshIsReadAsTheSphere) {
+    const std::string dir = test::tempDir() + "/smooth-sphere";
+    fs::create_directories(dir);
+    for (const bool smooth : {true, false}) {
+        tinygltf::Model model;
+        model.asset.version = "2.0";
+        model.buffers.resize(1);
+        // A UV sphere of radius 0.3 about (1, 2, 3): 16 segments, 8 rings; smooth or flat normals.
+        const Vec3 centre(1, 2, 3);
+        std::vector<float> xyz, normals, indices;
+        const auto point = [&](int ring, int segment) {
+            const double theta = kPi * ring / 8, phi = 2 * kPi * segment / 16;
+            return Vec3(std::sin(theta) * std::cos(phi), std::cos(theta), std::sin(theta) * std::sin(phi));
+        };
+        for (int r = 0; r < 8; ++r)
+            for (int g = 0; g < 16; ++g) {
+                const Vec3 a = point(r, g), b = point(r + 1, g), c = point(r + 1, g + 1), d = point(r, g + 1);
+                const Vec3 flat = (a + b + c + d).normalized();
+                for (const Vec3* q : {&a, &c, &b, &a, &d, &c}) {
+                    const Vec3 p = centre + 0.3 * *q, n = smooth ? *q : flat;
+                    xyz.insert(xyz.end(), {float(p.x()), float(p.y()), float(p.z())});
+                    normals.insert(normals.end(), {float(n.x()), float(n.y()), float(n.z())});
+                }
+            }
+        tinygltf::Primitive prim;
+        prim.attributes["POSITION"] = addAccessor(model, xyz, 3, TINYGLTF_TYPE_VEC3);
+        prim.attributes["NORMAL"] = addAccessor(model, normals, 3, TINYGLTF_TYPE_VEC3);
+        prim.mode = TINYGLTF_MODE_TRIANGLES;
+        tinygltf::Material white;
+        white.pbrMetallicRoughness.metallicFactor = 0;
+        white.emissiveFactor = {1, 1, 1};
+        model.materials.push_back(white);
+        prim.material = 0;
+        tinygltf::Mesh mesh;
+        mesh.primitives.push_back(prim);
+        model.meshes.push_back(mesh);
+        tinygltf::Node node;
+        node.name = "ball";
+        node.mesh = 0;
+        model.nodes.push_back(node);
+        tinygltf::Scene scene;
+        scene.nodes = {0};
+        model.scenes = {scene};
+        model.defaultScene = 0;
+        const std::string path = cat(dir, smooth ? "/smooth.glb" : "/flat.glb");
+        tinygltf::TinyGLTF writer;
+        ASSERT_TRUE(writer.WriteGltfSceneToFile(&model, path, true, true, false, true));
+        const Scene read = loadScene(path);
+        ASSERT_EQ(read.objects.size(), 1u);
+        const SceneObject& o = read.objects[0];
+        if (smooth) {
+            ASSERT_EQ(o.type, ShapeType::Sphere);
+            EXPECT_LT((o.toWorld * o.center - centre).norm(), 1e-6);
+            EXPECT_NEAR(o.radius, 0.3, 1e-6);
+        } else {
+            EXPECT_EQ(o.type, ShapeType::Mesh);
+        }
+    }
+}
