@@ -17,12 +17,6 @@
 namespace penumbra {
 namespace {
 
-std::string lowerExtension(const std::string& path) {
-    std::string e = std::filesystem::path(path).extension().string();
-    std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-    return e;
-}
-
 // Past this many pixels an image is refused before it is allocated (a header may claim anything).
 constexpr double kMostPixels = double(1 << 28);
 
@@ -81,6 +75,12 @@ void readPng(const std::string& path, ImagePixels& image) {
 }
 
 }  // namespace
+
+std::string lowerExtension(const std::string& path) {
+    std::string e = std::filesystem::path(path).extension().string();
+    std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    return e;
+}
 
 ImagePixels readImagePixels(const std::string& path) {
     ImagePixels image;

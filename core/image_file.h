@@ -19,4 +19,7 @@ struct ImagePixels {
 // Throws Error naming the file and why it cannot be read.
 ImagePixels readImagePixels(const std::string& path);
 
+// A path's extension in lower case, with its dot (".exr"), or "".
+std::string lowerExtension(const std::string& path);
+
 }  // namespace penumbra

@@ -224,14 +224,7 @@ void writeGltf(const ExportMesh& mesh, const std::string& path, double exposure)
             primitive.attributes["COLOR_0"] = colourAccessor;
             primitive.attributes["_RADIANCE"] = radianceAccessor;
         }
-        tinygltf::Accessor index;
-        index.bufferView =
-            addView(model, indices.data(), indices.size() * sizeof(uint32_t), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
-        index.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
-        index.count = indices.size();
-        index.type = TINYGLTF_TYPE_SCALAR;
-        model.accessors.push_back(index);
-        primitive.indices = int(model.accessors.size()) - 1;
+        primitive.indices = addIndexAccessor(model, indices);
         primitive.mode = TINYGLTF_MODE_TRIANGLES;
         primitive.material = g;
         m.primitives.push_back(primitive);

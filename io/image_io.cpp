@@ -26,12 +26,6 @@
 namespace penumbra {
 namespace {
 
-std::string extensionOf(const std::string& path) {
-    std::string e = std::filesystem::path(path).extension().string();
-    std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-    return e;
-}
-
 // Writes through `write(temporary)`, then renames into place; a failed write leaves nothing.
 template <typename Write>
 void writeAtomically(const std::string& path, Write&& write) {
@@ -138,7 +132,7 @@ void writePng(const std::string& path, int w, int h, const unsigned char* rgb) {
 }  // namespace
 
 void writeLinearImage(const Image& image, const std::string& path) {
-    if (extensionOf(path) == ".exr")
+    if (lowerExtension(path) == ".exr")
         writeExr(path, image);
     else
         writeWithOiio(path, image.width, image.height, true, image.rgb.data());
@@ -195,7 +189,7 @@ std::string pngBytes(int width, int height, const std::vector<unsigned char>& rg
 }
 
 void writeRgb8(const std::string& path, int width, int height, const std::vector<unsigned char>& rgb) {
-    if (extensionOf(path) == ".png")
+    if (lowerExtension(path) == ".png")
         writePng(path, width, height, rgb.data());
     else
         writeWithOiio(path, width, height, false, rgb.data());

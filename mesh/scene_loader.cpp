@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "core/image_file.h"
 #include "core/log.h"
 #include "mesh/gltf_scene.h"
 #include "mesh/mesh_file.h"
@@ -132,8 +133,7 @@ std::vector<Vec3> quadOf(const std::vector<Vec3>& t) {
 }  // namespace
 
 bool hasExtension(const std::string& path, std::initializer_list<const char*> extensions) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    const std::string ext = lowerExtension(path);
     for (const char* e : extensions)
         if (ext == e) return true;
     return false;

@@ -49,22 +49,27 @@ Rgb patchMean(const Texture& texture, const PatchSet& p, size_t i) {
 
 }  // namespace
 
-Rgb meanReflectance(const Scene& scene, const PatchSet& p, size_t i) {
+namespace {
+
+// A diffuse material's factor (reflectance or emission) times its texture's mean over patch i.
+Rgb meanOverPatch(const Scene& scene, const PatchSet& p, size_t i, Rgb Material::*factor,
+                  std::shared_ptr<const Texture> Material::*texture) {
     const SceneObject& o = scene.objects[size_t(p.object[i])];
     const Material& m = scene.materialOf(o);
     if (m.type != MaterialType::Diffuse) return Rgb::Zero();
-    if (!m.reflectanceTexture) return m.reflectance;
-    if (!p.hasUv() || !o.hasUv()) return m.reflectance * m.reflectanceTexture->mean();
-    return m.reflectance * patchMean(*m.reflectanceTexture, p, i);
+    const Texture* t = (m.*texture).get();
+    if (!t) return m.*factor;
+    return m.*factor * (p.hasUv() && o.hasUv() ? patchMean(*t, p, i) : t->mean());
+}
+
+}  // namespace
+
+Rgb meanReflectance(const Scene& scene, const PatchSet& p, size_t i) {
+    return meanOverPatch(scene, p, i, &Material::reflectance, &Material::reflectanceTexture);
 }
 
 Rgb meanEmission(const Scene& scene, const PatchSet& p, size_t i) {
-    const SceneObject& o = scene.objects[size_t(p.object[i])];
-    const Material& m = scene.materialOf(o);
-    if (m.type != MaterialType::Diffuse) return Rgb::Zero();
-    if (!m.emissionTexture) return m.emission;
-    if (!p.hasUv() || !o.hasUv()) return m.emission * m.emissionTexture->mean();
-    return m.emission * patchMean(*m.emissionTexture, p, i);
+    return meanOverPatch(scene, p, i, &Material::emission, &Material::emissionTexture);
 }
 
 Texture::Texture(std::string name, int width, int height, std::vector<float> rgb, Wrap wrapU, Wrap wrapV)
