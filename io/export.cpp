@@ -105,6 +105,17 @@ int remapAccessor(tinygltf::Model& model, int index, const std::vector<int>& fro
     return int(model.accessors.size()) - 1;
 }
 
+// Binary (.glb) unless the name ends in .gltf. Made in memory and written by the checked writer:
+// tinygltf's own file writing did not check that the bytes reached the disk.
+void writeModel(tinygltf::Model& model, const std::string& path) {
+    const bool binary = std::filesystem::path(path).extension() != ".gltf";
+    std::ostringstream bytes;
+    tinygltf::TinyGLTF writer;
+    if (!writer.WriteGltfSceneToStream(&model, bytes, !binary, binary))
+        throw Error(cat(path, ": tinygltf could not make the glTF file"));
+    writeFileAtomic(path, bytes.str());
+}
+
 template <class F>
 std::vector<float> flatten(size_t count, const F& at) {
     std::vector<float> out;
@@ -239,14 +250,7 @@ void writeGltf(const ExportMesh& mesh, const std::string& path, double exposure)
     model.scenes.push_back(scene);
     model.defaultScene = 0;
 
-    // Made in memory and written by the checked writer: tinygltf's own file writing did not check
-    // that the bytes reached the disk.
-    const bool binary = std::filesystem::path(path).extension() != ".gltf";
-    std::ostringstream bytes;
-    tinygltf::TinyGLTF writer;
-    if (!writer.WriteGltfSceneToStream(&model, bytes, !binary, binary))
-        throw Error(cat(path, ": tinygltf could not make the glTF file"));
-    writeFileAtomic(path, bytes.str());
+    writeModel(model, path);
 }
 
 namespace {
@@ -452,12 +456,7 @@ RoundTrip writeGltfRoundTrip(const Scene& scene, const SolveResult& stored, cons
     extras["penumbra"] = tinygltf::Value(note);
     model.asset.extras = tinygltf::Value(extras);
 
-    const bool binary = std::filesystem::path(path).extension() != ".gltf";
-    std::ostringstream bytes;
-    tinygltf::TinyGLTF writer;
-    if (!writer.WriteGltfSceneToStream(&model, bytes, !binary, binary))
-        throw Error(cat(path, ": tinygltf could not make the glTF file"));
-    writeFileAtomic(path, bytes.str());
+    writeModel(model, path);
     return out;
 }
 
