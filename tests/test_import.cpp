@@ -267,8 +267,23 @@ TEST(Import, WhatAGltfCannotGiveIsRefusedByName) {
         return path;
     };
     // The well-formed file solves: the reader is right, so the refusals below are for what they name.
-    const CommandResult good = run(cat("solve ", gltf("good.gltf", "", 4), " --out ", dir, "/good --quiet"));
-    EXPECT_EQ(good.status, 0) << good.output;
+    const std::string good = gltf("good.gltf", "", 4);
+    const CommandResult solved = run(cat("solve ", good, " --out ", dir, "/good --quiet"));
+    EXPECT_EQ(solved.status, 0) << solved.output;
+    // The good file with each (from, to) pair of `edits` replaced once, as `name`.
+    const auto variant = [&](const std::string& from, const std::string& name, auto... edits) {
+        std::ifstream in(from);
+        std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        const std::vector<std::string> pairs{edits...};
+        for (size_t k = 0; k + 1 < pairs.size(); k += 2) {
+            const size_t at = text.find(pairs[k]);
+            EXPECT_NE(at, std::string::npos) << pairs[k];
+            if (at != std::string::npos) text.replace(at, pairs[k].size(), pairs[k + 1]);
+        }
+        const std::string path = dir + "/" + name;
+        std::ofstream(path) << text;
+        return path;
+    };
     struct Case {
         std::string file, expected;
     };
@@ -284,6 +299,19 @@ TEST(Import, WhatAGltfCannotGiveIsRefusedByName) {
              return dir + "/text.glb";
          }(),
          "not a glTF 2.0 file"},
+        // Malformed (issue 17; the fuzzer, tests/fuzz/fuzz_import.cpp, tries many more): a missing
+        // accessor, an index past the vertices (the float 1.0's bits read as an index), a buffer file
+        // that is not there, and a count far past the buffer's bytes.
+        {variant(good, "bad-accessor.gltf", R"("POSITION": 0)", R"("POSITION": 7)"), "accessor 7"},
+        {variant(
+             good, "bad-index.gltf", R"("mode": 4)", R"("mode": 4, "indices": 1)",
+             R"("min": [0, 0, 0], "max": [1, 1, 0]}])",
+             R"("min": [0, 0, 0], "max": [1, 1, 0]}, {"bufferView": 0, "byteOffset": 12, "componentType": 5125, "count": 3, "type": "SCALAR"}])"),
+         "index 1065353216 past its 3 vertices"},
+        {variant(good, "missing-buffer.gltf", R"("uri": "data:application/octet-stream;base64,)",
+                 R"("uri": "missing.bin", "_was": ")"),
+         "missing.bin"},
+        {variant(good, "huge-count.gltf", R"("count": 3)", R"("count": 1000000000)"), "accessor"},
     };
     for (const Case& c : cases) {
         const std::string out = dir + "/out-" + fs::path(c.file).stem().string();

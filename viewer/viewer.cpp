@@ -285,6 +285,8 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
     glfwMakeContextCurrent(window);
     glfwSwapInterval(screenshot ? 0 : 1);
 
+    bool cullBackFaces = false;
+    for (const Material& m : scene.materials) cullBackFaces = cullBackFaces || m.doubleSided;
     // Geometry: the export's mesh (patch corners with their interpolated radiance).
     const ExportMesh mesh = exportMesh(patches, corners);
     std::vector<float> vertices;
@@ -483,8 +485,13 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
         glUniform1i(glGetUniformLocation(sceneProgram, "edges"), 0);
         glEnable(GL_POLYGON_OFFSET_FILL);
         glPolygonOffset(1, 1);
+        // A double-sided object's back is an object of its own 1e-5 of the scene behind its front
+        // (addBackFaces, scene_loader.cpp): closer than the depth buffer tells apart from a scene's
+        // size away, so where the scene has any, back faces are culled rather than drawn black.
+        if (cullBackFaces) glEnable(GL_CULL_FACE);
         glBindVertexArray(vao);
         glDrawElements(GL_TRIANGLES, GLsizei(triangles.size()), GL_UNSIGNED_INT, nullptr);
+        glDisable(GL_CULL_FACE);
         glDisable(GL_POLYGON_OFFSET_FILL);
         if (nav.edges) {
             glUniform1i(glGetUniformLocation(sceneProgram, "edges"), 1);
