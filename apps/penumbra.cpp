@@ -557,7 +557,7 @@ int runExport(ExportCli c) {
         } catch (const Error&) {  // a solve without its report: the patches
         }
     }
-    const bool roundTrip = c.geometry == "scene" || (c.geometry == "auto" && isGltfPath(sceneFile));
+    const bool roundTrip = c.geometry == "scene" || (c.geometry == "auto" && format == "gltf" && isGltfPath(sceneFile));
     if (roundTrip && (format != "gltf" || !isGltfPath(sceneFile)))
         throw Error(cat("--geometry scene: writes the glTF file the scene came from again (", sceneFile,
                         " is not one), as .glb or .gltf"));

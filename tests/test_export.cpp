@@ -311,6 +311,9 @@ TEST(Export, RoundTripGivesTheUsersGltfBackLitOnItsOwnVertices) {
     ASSERT_EQ(runCli(cat("solve ", scene, " --out ", dir, "/solved --patches 400")), 0);
     // Three stops down: the vertices under the lamp stay below 1.
     ASSERT_EQ(runCli(cat("export ", dir, "/solved --out ", dir, "/lit.glb --exposure -3")), 0);
+    // A PLY of the same solve is the patches' (the round trip is glTF only).
+    EXPECT_EQ(runCli(cat("export ", dir, "/solved --out ", dir, "/patches.ply")), 0);
+    EXPECT_TRUE(fs::exists(dir + "/patches.ply"));
 
     tinygltf::Model before, after;
     ASSERT_TRUE(loadGlb(scene, before));
