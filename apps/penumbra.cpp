@@ -513,7 +513,7 @@ int runView(RenderCli& c, SolveCli& s, ViewerOptions& options, const CommonOptio
 }
 
 struct ExportCli {
-    std::string dir, out, format, scene, geometry = "auto";
+    std::string dir, out, format, scene, geometry = "auto", holds = "light";
     double stops = 0;
     int lightmap = 0;
 };
@@ -570,8 +570,10 @@ int runExport(ExportCli c) {
         if (scene.fingerprint != stored.sceneFingerprint)
             throw Error(cat(c.dir, ": its solution is not of ", sceneFile, " as it is now (solve it again)"));
         RoundTrip r;
-        outputs.write(
-            name, [&](const std::string& path) { r = writeGltfRoundTrip(scene, stored, path, c.stops, c.lightmap); });
+        const LightmapHolds holds = c.holds == "radiance" ? LightmapHolds::Radiance : LightmapHolds::Light;
+        outputs.write(name, [&](const std::string& path) {
+            r = writeGltfRoundTrip(scene, stored, path, c.stops, c.lightmap, holds);
+        });
         outputs.commit();
         logInfo("wrote ", c.out, ": ", sceneFile, "'s ", r.nodes, " nodes, ", r.primitives, " primitives, ", r.vertices,
                 " vertices with COLOR_0 = min(1, ", r.exposure, " x irradiance / pi) and _RADIANCE",
@@ -836,6 +838,12 @@ int main(int argc, char** argv) {
         ->add_option("--lightmap", exportCli.lightmap,
                      "Also a SIZE x SIZE lightmap per primitive on TEXCOORD_1 (the round trip of a glTF scene)")
         ->check(inRange(1, 16384));
+    exportCmd
+        ->add_option("--lightmap-holds", exportCli.holds,
+                     "light | radiance: the lightmap's texels hold the light E/pi, as COLOR_0 (default; times the "
+                     "base colour and texture at their own resolution), or the radiance, texture and emission "
+                     "baked in")
+        ->check(CLI::IsMember({"light", "radiance"}));
 
     std::string compareImage, compareReference, compareScene, compareCamera;
     CLI::App* compareCmd = app.add_subcommand("compare", "Compare an image with a reference (e.g. a path-traced one)");

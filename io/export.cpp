@@ -301,7 +301,7 @@ private:
 }  // namespace
 
 RoundTrip writeGltfRoundTrip(const Scene& scene, const SolveResult& stored, const std::string& path, double stops,
-                             int lightmap) {
+                             int lightmap, LightmapHolds holds) {
     tinygltf::Model model;
     readGltfModel(scene.path, model);
     if (model.buffers.empty()) model.buffers.resize(1);
@@ -345,7 +345,7 @@ RoundTrip writeGltfRoundTrip(const Scene& scene, const SolveResult& stored, cons
         Lit l{meshOfNode[o.sourceNode], o.sourcePrimitive, i, {}, {}};
         for (const Vec3& local : gltfPrimitivePositions(model, l.mesh, l.primitive, scene.path)) {
             bool exact = false;
-            l.points.push_back(o.sourceToWorld * local / scene.metresPerUnit);
+            l.points.push_back(gltfWorldPosition(o.sourceToWorld, local) / scene.metresPerUnit);
             l.light.push_back(corners[i].at(l.points.back(), exact));
             out.verticesOffCorners += !exact;
             luminances.push_back(luminance(l.light.back().radiance));
@@ -356,7 +356,19 @@ RoundTrip writeGltfRoundTrip(const Scene& scene, const SolveResult& stored, cons
     out.exposure = exposureScale(luminances, stops);
 
     std::shared_ptr<const RayScene> rays;
-    if (lightmap > 0) rays = buildRayScene(scene, stored.patches);
+    double diagonal = 0;
+    if (lightmap > 0)
+        rays = buildRayScene(scene, stored.patches), diagonal = patchBounds(stored.patches).diagonal().norm();
+    // What a texel holds at a point of patch i (Embree's parameters u, v): the light E/pi, or the
+    // radiance rho(x) E/pi + emission with the texel of the material's textures there.
+    const auto texel = [&](size_t i, double u, double v) -> Rgb {
+        const Rgb light = interpolateAt(stored.patches, i, u, v, irradiance[i]) * kInvPi;
+        if (holds == LightmapHolds::Light) return light;
+        const Material& m = scene.materials[size_t(scene.objects[size_t(stored.patches.object[i])].material)];
+        const Vec2 uv = stored.patches.hasUv() ? stored.patches.uvAtHit(i, u, v) : Vec2::Zero();
+        const Vec2* at = stored.patches.hasUv() ? &uv : nullptr;
+        return m.reflectanceAt(at) * light + m.emissionAt(at);
+    };
     std::set<int> unlit;
     for (Lit& l : lit) {
         tinygltf::Primitive& prim = model.meshes[size_t(l.mesh)].primitives[size_t(l.primitive)];
@@ -367,15 +379,12 @@ RoundTrip writeGltfRoundTrip(const Scene& scene, const SolveResult& stored, cons
             // its normal meets, from either side, reaching farther where the file's triangles and our
             // patches part (a quad that is not quite flat, as the Cornell box's left wall: the file
             // folds it along a diagonal, our patches follow its bilinear surface, 1.6 mm apart).
-            const double diagonal = patchBounds(stored.patches).diagonal().norm();
             const std::vector<Rgb> texels = bakeLightmap(layout, l.points, [&](const Vec3& x, const Vec3& n) -> Rgb {
                 for (const double reach : {1e-4 * diagonal, 1e-3 * diagonal, 1e-2 * diagonal})
                     for (const double side : {1.0, -1.0}) {
                         const Hit h = rays->intersect(x + side * reach * n, -side * n, 0, 2 * reach, RayView::Patches);
                         if (h.patch >= 0 && size_t(stored.patches.object[size_t(h.patch)]) == l.object)
-                            return interpolateAt(stored.patches, size_t(h.patch), h.u, h.v,
-                                                 irradiance[size_t(h.patch)]) *
-                                   kInvPi;
+                            return texel(size_t(h.patch), h.u, h.v);
                     }
                 ++out.texelsMissed;
                 return Rgb::Zero();
@@ -412,6 +421,9 @@ RoundTrip writeGltfRoundTrip(const Scene& scene, const SolveResult& stored, cons
             note["texCoord"] = tinygltf::Value(1);
             const double density = layout.texelsPerMetre / scene.metresPerUnit;
             note["texels_per_metre"] = tinygltf::Value(density);
+            note["holds"] = tinygltf::Value(std::string(
+                holds == LightmapHolds::Light ? "min(1, exposure * irradiance / pi), as COLOR_0"
+                                              : "min(1, exposure * radiance), the texture and emission baked in"));
             tinygltf::Value::Object extras =
                 prim.extras.IsObject() ? prim.extras.Get<tinygltf::Value::Object>() : tinygltf::Value::Object();
             extras["penumbra_lightmap"] = tinygltf::Value(note);

@@ -53,7 +53,12 @@ void writeGltf(const ExportMesh& mesh, const std::string& path, double exposure)
 // its own layout on TEXCOORD_1, vertices split where charts meet), each texel the same light as
 // COLOR_0 at its point of the surface, interpolated within the patch under it (found by a ray along
 // the surface's normal), as an sRGB PNG embedded in the file; the primitive's extras name it:
-// {"penumbra_lightmap": {"texture": T, "texCoord": 1, "texels_per_metre": D}}.
+// {"penumbra_lightmap": {"texture": T, "texCoord": 1, "texels_per_metre": D, "holds": H}}.
+// What the texels hold (H): the light, as COLOR_0 (for a renderer that multiplies it by the base
+// colour and its texture at their own resolution), or the radiance B/pi = rho(x) E/pi + emission, the
+// surface as it looks (its texture baked in at the lightmap's resolution), for an emission slot.
+enum class LightmapHolds { Light, Radiance };
+
 struct RoundTrip {
     size_t nodes = 0, primitives = 0, vertices = 0, meshesCopied = 0;
     size_t verticesOffCorners = 0;  // vertices that took the nearest corner (no corner at their point)
@@ -62,7 +67,7 @@ struct RoundTrip {
     double texelsPerMetre = 0;               // the lowest density of the lightmaps
 };
 RoundTrip writeGltfRoundTrip(const Scene& scene, const SolveResult& stored, const std::string& path, double stops,
-                             int lightmap = 0);
+                             int lightmap = 0, LightmapHolds holds = LightmapHolds::Light);
 
 // PLY with 8-bit sRGB vertex colours of exposure * radiance. Written atomically.
 void writePly(const ExportMesh& mesh, const std::string& path, double exposure);

@@ -3,6 +3,7 @@
 #include <tiny_gltf.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -24,16 +25,47 @@ using namespace scene_detail;
 // transmissive is glass, anything else diffuse.
 constexpr double kMirrorMetallic = 0.5, kMirrorRoughness = 0.05, kGlassTransmission = 0.5;
 
+// What a number held as a float stands for: the shortest decimal that reads back as the same float
+// (0.555f is 0.55500000715 as a double, and stands for 0.555). glTF holds positions as floats and
+// exporters write factors from floats (Blender: 0.7300000190734863); read at face value, a box made
+// in metres lies 1e-8 off its own numbers, and a seeded stochastic solve (photon paths past glass)
+// follows other paths than the same scene written as decimals. Taken as their decimals, the file
+// gives the scene it was made from. Changes a number by at most half a float step: what the file
+// holds is unchanged.
+double floatDecimal(double x) {
+    const float f = float(x);
+    if (!std::isfinite(f)) return x;
+    char text[32];
+    const auto written = std::to_chars(text, text + sizeof text, f);
+    double d = x;
+    if (written.ec == std::errc{}) std::from_chars(text, written.ptr, d);
+    return d;
+}
+
+// The decimal of fewest significant digits within `tolerance` of x (x itself past 17 digits).
+double simplestWithin(double x, double tolerance) {
+    for (int digits = 1; digits <= 17; ++digits) {
+        char text[40];
+        const auto written = std::to_chars(text, text + sizeof text, x, std::chars_format::scientific, digits - 1);
+        double d = x;
+        if (written.ec == std::errc{}) std::from_chars(text, written.ptr, d);
+        if (std::abs(d - x) <= tolerance) return d;
+    }
+    return x;
+}
+
+Vec3 floatDecimal(const Vec3& v) { return Vec3(floatDecimal(v.x()), floatDecimal(v.y()), floatDecimal(v.z())); }
+
 double extensionNumber(const tinygltf::ExtensionMap& extensions, const char* extension, const char* key,
                        double otherwise) {
     const auto it = extensions.find(extension);
     if (it == extensions.end() || !it->second.IsObject() || !it->second.Has(key)) return otherwise;
     const tinygltf::Value& v = it->second.Get(key);
-    return v.IsNumber() ? v.GetNumberAsDouble() : otherwise;
+    return v.IsNumber() ? floatDecimal(v.GetNumberAsDouble()) : otherwise;
 }
 
 Rgb factor3(const std::vector<double>& v, double otherwise) {
-    return v.size() >= 3 ? Rgb(v[0], v[1], v[2]) : Rgb::Constant(otherwise);
+    return v.size() >= 3 ? Rgb(floatDecimal(v[0]), floatDecimal(v[1]), floatDecimal(v[2])) : Rgb::Constant(otherwise);
 }
 
 Wrap wrapOf(int mode) {
@@ -231,9 +263,15 @@ std::optional<std::pair<Vec3, double>> smoothSphere(const PolygonSoup& soup, con
     if (n < 48 || normals.size() != 3 * n) return std::nullopt;
     Eigen::AlignedBox3d box;
     for (const Vec3& v : soup.vertices) box.extend(v);
-    const Vec3 centre = box.center();
-    double radius = 0;
+    Vec3 centre = box.center();
+    double radius = 0, scatter = 0;
     for (const Vec3& v : soup.vertices) radius += (v - centre).norm() / double(n);
+    for (const Vec3& v : soup.vertices) scatter = std::max(scatter, std::abs((v - centre).norm() - radius));
+    // The simplest numbers the vertices allow: Blender's float trigonometry scatters a UV sphere's
+    // vertices 5e-8 about the radius (7 float steps at 0.1 m), and the sphere it was made as, centre
+    // (0.175, 0.1005, 0.19) and radius 0.1, lies within that scatter; the mean distance is 1e-7 off.
+    for (int c = 0; c < 3; ++c) centre[c] = simplestWithin(centre[c], scatter);
+    radius = simplestWithin(radius, scatter);
     if (!(radius > 0)) return std::nullopt;
     const Eigen::Matrix3d normalMatrix = world.linear().inverse().transpose();
     for (size_t k = 0; k < n; ++k) {
@@ -304,6 +342,10 @@ std::vector<Vec3> gltfPrimitivePositions(const tinygltf::Model& model, int mesh,
         size_t(primitive) >= model.meshes[size_t(mesh)].primitives.size())
         w.fail("does not exist");
     return positionsOf(model, model.meshes[size_t(mesh)].primitives[size_t(primitive)], w);
+}
+
+Vec3 gltfWorldPosition(const Eigen::Affine3d& toWorld, const Vec3& local) {
+    return floatDecimal(Vec3(toWorld * local));
 }
 
 std::vector<std::array<int, 3>> gltfPrimitiveTriangles(const tinygltf::Model& model, int mesh, int primitive,
@@ -395,7 +437,7 @@ Scene readGltfScene(const std::string& path) {
             if (c.type == "perspective") {
                 cameraFound = true;
                 Camera& cam = scene.camera;
-                cam.position = world * Vec3::Zero();
+                cam.position = floatDecimal(Vec3(world * Vec3::Zero()));
                 cam.lookAt = cam.position + (world.linear() * Vec3(0, 0, -1)).normalized();
                 cam.up = (world.linear() * Vec3(0, 1, 0)).normalized();
                 cam.fovYDeg = c.perspective.yfov * 180 / kPi;
@@ -431,7 +473,7 @@ Scene readGltfScene(const std::string& path) {
                 if (indices.size() % 3 != 0 || indices.empty()) wp.fail("no whole triangles");
                 PolygonSoup soup;
                 for (size_t k = 0; k < vertices; ++k) {
-                    soup.vertices.push_back(world * local[k]);
+                    soup.vertices.push_back(gltfWorldPosition(world, local[k]));
                     checkCoordinate(soup.vertices.back(), 1, wp);
                 }
                 for (size_t k = 0; k < indices.size(); k += 3) {

@@ -23,6 +23,9 @@ void readGltfModel(const std::string& path, tinygltf::Model& model);
 // node's transform); throws Error naming the file and the accessor at fault.
 std::vector<Vec3> gltfPrimitivePositions(const tinygltf::Model& model, int mesh, int primitive,
                                          const std::string& path);
+// Where the scene reader places a vertex at `local` of a node placed by `toWorld` (metres): its
+// coordinates as the decimals the file's floats stand for.
+Vec3 gltfWorldPosition(const Eigen::Affine3d& toWorld, const Vec3& local);
 // Its triangles, as vertex indices (its index accessor, or the vertices in order without one).
 std::vector<std::array<int, 3>> gltfPrimitiveTriangles(const tinygltf::Model& model, int mesh, int primitive,
                                                        const std::string& path);

@@ -760,6 +760,8 @@ SceneObject backFace(const SceneObject& o, double d) {
 // `<name>#back`, right after it, 1e-5 of the scene's diagonal behind (ten times the tracer's ray
 // offset: the two never meet a ray at one distance).
 void addBackFaces(Scene& scene) {
+    if (std::none_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) { return m.doubleSided; }))
+        return;
     Eigen::AlignedBox3d box;
     for (const SceneObject& o : scene.objects) {
         for (const Vec3& v : o.vertices) box.extend(v);

@@ -432,7 +432,8 @@ TEST(Export, MirrorsAndGlassGoOutAsGltfMaterialsAndComeBack) {
 // its charts (triangles joined by shared vertices, found here from the file alone) in rectangles no
 // two of which overlap, inside the image; and a floor texel whose centre lies inside a triangle holds
 // the light there, E / pi, as the closed form of the lamp over the floor gives it (decoded from its
-// sRGB byte and the stated exposure; within 3%, and 2/255 for the bytes' steps).
+// sRGB byte and the stated exposure; within 3%, and 2/255 for the bytes' steps); with
+// `--lightmap-holds radiance`, the radiance B / pi = rho E / pi.
 TEST(Export, LightmapChartsDoNotOverlapAndHoldTheLightAtTheirPoints) {
     const std::string dir = test::tempDir() + "/lightmap";
     fs::remove_all(dir);
@@ -440,84 +441,94 @@ TEST(Export, LightmapChartsDoNotOverlapAndHoldTheLightAtTheirPoints) {
     const std::string scene = dir + "/users.glb";
     writeUsersGltf(scene);
     ASSERT_EQ(runCli(cat("solve ", scene, " --out ", dir, "/solved --patches 400")), 0);
-    ASSERT_EQ(runCli(cat("export ", dir, "/solved --out ", dir, "/lit.glb --lightmap 128")), 0);
-    tinygltf::Model model;
-    ASSERT_TRUE(loadGlb(dir + "/lit.glb", model));
-    const double exposure = model.asset.extras.Get("penumbra").Get("exposure").GetNumberAsDouble();
-    const auto decode = [](int byte) {
-        const double c = byte / 255.0;
-        return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
-    };
-    size_t texelsChecked = 0;
-    double worst = -1, largest = 0;
-    for (size_t n : {size_t(1), size_t(2), size_t(3)}) {
-        const tinygltf::Primitive& p = model.meshes.at(size_t(model.nodes[n].mesh)).primitives.at(0);
-        ASSERT_TRUE(p.extras.Has("penumbra_lightmap")) << model.nodes[n].name;
-        const int texture = p.extras.Get("penumbra_lightmap").Get("texture").GetNumberAsInt();
-        const tinygltf::Image& image = model.images.at(size_t(model.textures.at(size_t(texture)).source));
-        ASSERT_EQ(image.width, 128);
-        ASSERT_EQ(image.height, 128);
-        const auto it = p.attributes.find("TEXCOORD_1");
-        ASSERT_NE(it, p.attributes.end());
-        const tinygltf::Accessor& a = model.accessors[size_t(it->second)];
-        const tinygltf::BufferView& v = model.bufferViews[size_t(a.bufferView)];
-        std::vector<float> uv(2 * a.count);
-        std::memcpy(uv.data(), model.buffers[0].data.data() + v.byteOffset + a.byteOffset, uv.size() * sizeof(float));
-        const tinygltf::Accessor& ia = model.accessors[size_t(p.indices)];
-        const tinygltf::BufferView& iv = model.bufferViews[size_t(ia.bufferView)];
-        std::vector<uint32_t> index(ia.count);
-        ASSERT_EQ(ia.componentType, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT);
-        std::memcpy(index.data(), model.buffers[0].data.data() + iv.byteOffset + ia.byteOffset, index.size() * 4);
-        const std::vector<float> position = vec3Attribute(model, p, "POSITION");
-        // Charts: triangles joined by shared vertices; their rectangles in texels, pairwise apart.
-        std::vector<int> chart(a.count);
-        std::iota(chart.begin(), chart.end(), 0);
-        std::function<int(int)> root = [&](int i) {
-            return chart[size_t(i)] == i ? i : chart[size_t(i)] = root(chart[size_t(i)]);
+    // The light E/pi (the floor's radiance over its reflectance, 0.5), or the radiance B/pi.
+    for (const auto& [holds, perRadiance] : {std::pair{"light", 2.0}, std::pair{"radiance", 1.0}}) {
+        SCOPED_TRACE(holds);
+        ASSERT_EQ(runCli(cat("export ", dir, "/solved --out ", dir, "/lit-", holds,
+                             ".glb --lightmap 128 --lightmap-holds ", holds)),
+                  0);
+        tinygltf::Model model;
+        ASSERT_TRUE(loadGlb(cat(dir, "/lit-", holds, ".glb"), model));
+        const double exposure = model.asset.extras.Get("penumbra").Get("exposure").GetNumberAsDouble();
+        const auto decode = [](int byte) {
+            const double c = byte / 255.0;
+            return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
         };
-        for (size_t t = 0; t + 2 < index.size(); t += 3)
-            for (int k = 1; k < 3; ++k) chart[size_t(root(int(index[t + size_t(k)])))] = root(int(index[t]));
-        std::map<int, Eigen::AlignedBox2d> boxes;
-        for (size_t i = 0; i < a.count; ++i) boxes[root(int(i))].extend(Vec2(uv[2 * i], uv[2 * i + 1]) * 128.0);
-        for (const auto& [c, box] : boxes) {
-            EXPECT_GE(box.min().minCoeff(), 0);
-            EXPECT_LE(box.max().maxCoeff(), 128);
-            for (const auto& [d, other] : boxes)
-                if (c < d) {
-                    EXPECT_FALSE(box.intersects(other)) << model.nodes[n].name << ": charts overlap";
-                }
-        }
-        if (n == 3) continue;  // the lamp: its own light is its emission, not checked here
-        const double east = n == 2 ? 2 : 0;
-        for (size_t t = 0; t + 2 < index.size(); t += 3) {
-            std::array<Vec2, 3> q;
-            std::array<Vec3, 3> x;
-            for (size_t k = 0; k < 3; ++k) {
-                const size_t i = index[t + k];
-                q[k] = Vec2(uv[2 * i], uv[2 * i + 1]) * 128.0;
-                x[k] = Vec3(position[3 * i] + east, position[3 * i + 1], position[3 * i + 2]);
+        size_t texelsChecked = 0;
+        double worst = -1, largest = 0;
+        for (size_t n : {size_t(1), size_t(2), size_t(3)}) {
+            const tinygltf::Primitive& p = model.meshes.at(size_t(model.nodes[n].mesh)).primitives.at(0);
+            ASSERT_TRUE(p.extras.Has("penumbra_lightmap")) << model.nodes[n].name;
+            const int texture = p.extras.Get("penumbra_lightmap").Get("texture").GetNumberAsInt();
+            const tinygltf::Image& image = model.images.at(size_t(model.textures.at(size_t(texture)).source));
+            ASSERT_EQ(image.width, 128);
+            ASSERT_EQ(image.height, 128);
+            const auto it = p.attributes.find("TEXCOORD_1");
+            ASSERT_NE(it, p.attributes.end());
+            const tinygltf::Accessor& a = model.accessors[size_t(it->second)];
+            const tinygltf::BufferView& v = model.bufferViews[size_t(a.bufferView)];
+            std::vector<float> uv(2 * a.count);
+            std::memcpy(uv.data(), model.buffers[0].data.data() + v.byteOffset + a.byteOffset,
+                        uv.size() * sizeof(float));
+            const tinygltf::Accessor& ia = model.accessors[size_t(p.indices)];
+            const tinygltf::BufferView& iv = model.bufferViews[size_t(ia.bufferView)];
+            std::vector<uint32_t> index(ia.count);
+            ASSERT_EQ(ia.componentType, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT);
+            std::memcpy(index.data(), model.buffers[0].data.data() + iv.byteOffset + ia.byteOffset, index.size() * 4);
+            const std::vector<float> position = vec3Attribute(model, p, "POSITION");
+            // Charts: triangles joined by shared vertices; their rectangles in texels, pairwise apart.
+            std::vector<int> chart(a.count);
+            std::iota(chart.begin(), chart.end(), 0);
+            std::function<int(int)> root = [&](int i) {
+                return chart[size_t(i)] == i ? i : chart[size_t(i)] = root(chart[size_t(i)]);
+            };
+            for (size_t t = 0; t + 2 < index.size(); t += 3)
+                for (int k = 1; k < 3; ++k) chart[size_t(root(int(index[t + size_t(k)])))] = root(int(index[t]));
+            std::map<int, Eigen::AlignedBox2d> boxes;
+            for (size_t i = 0; i < a.count; ++i) boxes[root(int(i))].extend(Vec2(uv[2 * i], uv[2 * i + 1]) * 128.0);
+            for (const auto& [c, box] : boxes) {
+                EXPECT_GE(box.min().minCoeff(), 0);
+                EXPECT_LE(box.max().maxCoeff(), 128);
+                for (const auto& [d, other] : boxes)
+                    if (c < d) {
+                        EXPECT_FALSE(box.intersects(other)) << model.nodes[n].name << ": charts overlap";
+                    }
             }
-            const double area = (q[1] - q[0]).x() * (q[2] - q[0]).y() - (q[1] - q[0]).y() * (q[2] - q[0]).x();
-            for (int py = 0; py < 128; ++py)
-                for (int px = 0; px < 128; ++px) {
-                    const Vec2 c(px + 0.5, py + 0.5);
-                    const double b1 = ((c - q[0]).x() * (q[2] - q[0]).y() - (c - q[0]).y() * (q[2] - q[0]).x()) / area;
-                    const double b2 = ((q[1] - q[0]).x() * (c - q[0]).y() - (q[1] - q[0]).y() * (c - q[0]).x()) / area;
-                    if (b1 < 0.01 || b2 < 0.01 || 1 - b1 - b2 < 0.01) continue;
-                    const Vec3 point = (1 - b1 - b2) * x[0] + b1 * x[1] + b2 * x[2];
-                    const double expected = std::min(1.0, exposure * test::unshadowedFloor(point) / (0.5 * kPi));
-                    const size_t at = (size_t(py) * 128 + size_t(px)) * size_t(image.component);
-                    const double got = decode(image.image[at]);
-                    worst = std::max(worst, std::abs(got - expected) - 0.03 * expected - 2.0 / 255);
-                    if (expected > 0.05) largest = std::max(largest, std::abs(got / expected - 1));
-                    ++texelsChecked;
+            if (n == 3) continue;  // the lamp: its own light is its emission, not checked here
+            const double east = n == 2 ? 2 : 0;
+            for (size_t t = 0; t + 2 < index.size(); t += 3) {
+                std::array<Vec2, 3> q;
+                std::array<Vec3, 3> x;
+                for (size_t k = 0; k < 3; ++k) {
+                    const size_t i = index[t + k];
+                    q[k] = Vec2(uv[2 * i], uv[2 * i + 1]) * 128.0;
+                    x[k] = Vec3(position[3 * i] + east, position[3 * i + 1], position[3 * i + 2]);
                 }
+                const double area = (q[1] - q[0]).x() * (q[2] - q[0]).y() - (q[1] - q[0]).y() * (q[2] - q[0]).x();
+                for (int py = 0; py < 128; ++py)
+                    for (int px = 0; px < 128; ++px) {
+                        const Vec2 c(px + 0.5, py + 0.5);
+                        const double b1 =
+                            ((c - q[0]).x() * (q[2] - q[0]).y() - (c - q[0]).y() * (q[2] - q[0]).x()) / area;
+                        const double b2 =
+                            ((q[1] - q[0]).x() * (c - q[0]).y() - (q[1] - q[0]).y() * (c - q[0]).x()) / area;
+                        if (b1 < 0.01 || b2 < 0.01 || 1 - b1 - b2 < 0.01) continue;
+                        const Vec3 point = (1 - b1 - b2) * x[0] + b1 * x[1] + b2 * x[2];
+                        const double expected =
+                            std::min(1.0, exposure * perRadiance * test::unshadowedFloor(point) * kInvPi);
+                        const size_t at = (size_t(py) * 128 + size_t(px)) * size_t(image.component);
+                        const double got = decode(image.image[at]);
+                        worst = std::max(worst, std::abs(got - expected) - 0.03 * expected - 2.0 / 255);
+                        if (expected > 0.05) largest = std::max(largest, std::abs(got / expected - 1));
+                        ++texelsChecked;
+                    }
+            }
         }
+        EXPECT_GT(texelsChecked, 2000u);
+        EXPECT_LE(worst, 0) << "a texel off the closed form by more than 3% and 2/255";
+        std::printf("lightmap (%s): %zu texels, largest relative deviation where the texel > 0.05: %.4f\n", holds,
+                    texelsChecked, largest);
     }
-    EXPECT_GT(texelsChecked, 2000u);
-    EXPECT_LE(worst, 0) << "a texel off the closed form by more than 3% and 2/255";
-    std::printf("lightmap: %zu texels, largest relative deviation where E/pi x exposure > 0.05: %.4f\n", texelsChecked,
-                largest);
 }
 
 // A smooth-shaded sphere in a glTF (a UV sphere's vertices on one sphere, its normals radial) is read
