@@ -19,6 +19,7 @@
 #include "core/cluster.h"
 #include "core/counters.h"
 #include "core/error.h"
+#include "core/image_file.h"
 #include "core/log.h"
 #include "core/parallel.h"
 #include "core/progress.h"
@@ -493,8 +494,10 @@ int runRender(RenderCli& c, SolveCli& s, const CommonOptions& common) {
 int runView(RenderCli& c, SolveCli& s, ViewerOptions& options, const CommonOptions& common) {
     const Scene scene = loadScene(c.scene);
     const Camera camera = cameraFor(scene, c);
-    if (!options.screenshot.empty() && std::filesystem::path(options.screenshot).extension() != ".png")
-        throw Error(cat("--screenshot ", options.screenshot, ": expected a .png file name"));
+    const std::string shot = options.screenshot.empty() ? "" : lowerExtension(options.screenshot);
+    if (!options.screenshot.empty() && shot != ".png" && (shot != ".exr" || options.wholeWindow))
+        throw Error(cat("--screenshot ", options.screenshot, ": expected a .png file name",
+                        options.wholeWindow ? " (the window as shown is 8-bit)" : " (or .exr: linear radiance)"));
     requireDisplay();  // before any solving
     const SolveResult stored = solutionFor(scene, c, s, common, 0);
     if (!c.solution.empty()) {
@@ -895,7 +898,8 @@ int main(int argc, char** argv) {
     viewCmd->add_option("--resolution", view.resolution, "Window size WIDTHxHEIGHT (default: the camera's)");
     viewCmd->add_option("--exposure", viewer.exposureStops, "Exposure, in stops from the automatic one");
     viewCmd->add_option("--screenshot", viewer.screenshot,
-                        "Draw --frames frames from the camera, save the last to this PNG and exit");
+                        "Draw --frames frames from the camera, save the last to this PNG (or EXR: linear radiance) "
+                        "and exit");
     viewCmd->add_option("--frames", viewer.frames, "Frames drawn before --screenshot")
         ->capture_default_str()
         ->check(inRange(1, 100000));

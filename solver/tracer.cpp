@@ -6,19 +6,22 @@
 #include "core/optics.h"
 
 namespace penumbra {
-namespace {
 
-// A sphere object is traced exactly when it is a mirror or glass and its transform keeps it a
-// sphere (rotation and uniform scale); an ellipsoid keeps its facets.
-bool exactSphere(const Scene& scene, const SceneObject& o, RaySphere& out) {
-    if (o.type != ShapeType::Sphere || scene.materialOf(o).type == MaterialType::Diffuse) return false;
+std::optional<RaySphere> exactSphereOf(const Scene& scene, const SceneObject& o) {
+    if (o.type != ShapeType::Sphere || scene.materialOf(o).type == MaterialType::Diffuse) return std::nullopt;
     const Eigen::Matrix3d L = o.toWorld.linear();
     const Eigen::Matrix3d G = L.transpose() * L;
     const double s2 = G.trace() / 3;
-    if ((G - s2 * Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-9 * s2) return false;
-    out.center = o.toWorld * o.center;
-    out.radius = o.radius * std::sqrt(s2);
-    return true;
+    if ((G - s2 * Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-9 * s2) return std::nullopt;
+    return RaySphere{o.toWorld * o.center, o.radius * std::sqrt(s2)};
+}
+
+namespace {
+
+bool exactSphere(const Scene& scene, const SceneObject& o, RaySphere& out) {
+    const std::optional<RaySphere> s = exactSphereOf(scene, o);
+    if (s) out = *s;
+    return s.has_value();
 }
 
 // The exact spheres of a scene, with the object each stands for (-1 per object that has none).

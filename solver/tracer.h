@@ -132,6 +132,11 @@ private:
     double epsilon_ = 1e-6;
 };
 
+// The exact sphere a mirror or glass sphere object is traced as (centre and radius in the scene's
+// inside units): when its transform keeps it a sphere (rotation and uniform scale); an ellipsoid
+// keeps its facets (empty).
+std::optional<RaySphere> exactSphereOf(const Scene& scene, const SceneObject& o);
+
 // Where light arriving along `dir` at a mirror or glass hit goes: reflection and (glass) refraction
 // with their Fresnel-weighted tints. `probability` is the share to pick a branch with when
 // following one path; `weight` the factor of the light it carries. The back of a mirror absorbs.

@@ -1,12 +1,10 @@
 #include "viewer/viewer.h"
 
-#define GL_GLEXT_PROTOTYPES
-#define GLFW_INCLUDE_GLEXT
-#include <GLFW/glfw3.h>
 #include <backends/imgui_impl_glfw.h>
 #include <backends/imgui_impl_opengl3.h>
 #include <imgui.h>
 
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -14,33 +12,20 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "core/error.h"
+#include "core/image_file.h"
 #include "core/log.h"
 #include "io/export.h"
 #include "io/image_io.h"
 #include "render/final_gather.h"
+#include "viewer/gl.h"
+#include "viewer/scene_draw.h"
 
 namespace penumbra {
 namespace {
-
-const char* kSceneVertex = R"(#version 330 core
-layout(location = 0) in vec3 position;
-layout(location = 1) in vec3 radiance;
-uniform mat4 viewProjection;
-out vec3 vRadiance;
-void main() { vRadiance = radiance; gl_Position = viewProjection * vec4(position, 1.0); })";
-
-// Linear radiance into a float target; back faces are black (the contract's rule); edges flat.
-const char* kSceneFragment = R"(#version 330 core
-in vec3 vRadiance;
-uniform int edges;
-out vec4 colour;
-void main() {
-    if (edges == 1) { colour = vec4(0.0, 0.0, 0.0, 1.0); return; }
-    colour = gl_FrontFacing ? vec4(vRadiance, 1.0) : vec4(0.0, 0.0, 0.0, 1.0);
-})";
 
 // The float image, tone-mapped as the PNG previews are (clamp(scale * L), then sRGB), or by
 // Reinhard's operator on luminance.
@@ -70,50 +55,6 @@ void main() {
     }
     colour = vec4(srgb(v), 1.0);
 })";
-
-GLuint compile(GLenum type, const char* source) {
-    const GLuint s = glCreateShader(type);
-    glShaderSource(s, 1, &source, nullptr);
-    glCompileShader(s);
-    GLint ok = 0;
-    glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
-    if (!ok) {
-        char log[2048];
-        glGetShaderInfoLog(s, sizeof log, nullptr, log);
-        throw Error(cat("view: the OpenGL driver rejected a shader: ", log));
-    }
-    return s;
-}
-
-GLuint program(const char* vertex, const char* fragment) {
-    const GLuint p = glCreateProgram();
-    glAttachShader(p, compile(GL_VERTEX_SHADER, vertex));
-    glAttachShader(p, compile(GL_FRAGMENT_SHADER, fragment));
-    glLinkProgram(p);
-    GLint ok = 0;
-    glGetProgramiv(p, GL_LINK_STATUS, &ok);
-    if (!ok) throw Error("view: the OpenGL driver could not link a shader program");
-    return p;
-}
-
-Eigen::Matrix4f viewProjection(const Camera& c, int width, int height, double sceneSize) {
-    const Vec3 f = (c.lookAt - c.position).normalized();
-    const Vec3 s = f.cross(c.up).normalized();
-    const Vec3 u = s.cross(f);
-    Eigen::Matrix4d view = Eigen::Matrix4d::Identity();
-    view.row(0) << s.x(), s.y(), s.z(), -s.dot(c.position);
-    view.row(1) << u.x(), u.y(), u.z(), -u.dot(c.position);
-    view.row(2) << -f.x(), -f.y(), -f.z(), f.dot(c.position);
-    const double near = 1e-3 * sceneSize, far = 20 * sceneSize + (c.position - c.lookAt).norm() * 4;
-    const double t = 1 / std::tan(c.fovYDeg * kPi / 360), aspect = double(width) / height;
-    Eigen::Matrix4d projection = Eigen::Matrix4d::Zero();
-    projection(0, 0) = t / aspect;
-    projection(1, 1) = t;
-    projection(2, 2) = (far + near) / (near - far);
-    projection(2, 3) = 2 * far * near / (near - far);
-    projection(3, 2) = -1;
-    return (projection * view).cast<float>();
-}
 
 // Mouse and keyboard navigation about a target point (orbit, pan, zoom) or from the eye (fly).
 struct Navigation {
@@ -242,6 +183,14 @@ private:
     std::vector<double> sum_;
 };
 
+// The picture drawn: linear radiance (.exr), or tone-mapped as the previews are (.png).
+void saveScreenshot(const Image& image, const ViewerOptions& options) {
+    if (lowerExtension(options.screenshot) == ".exr")
+        writeLinearImage(image, options.screenshot);
+    else
+        writePreviewPng(image, options.screenshot, options.exposureStops);
+}
+
 bool sameView(const Camera& a, const Camera& b) {
     return a.position == b.position && a.lookAt == b.lookAt && a.width == b.width && a.height == b.height;
 }
@@ -287,46 +236,49 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
 
     bool cullBackFaces = false;
     for (const Material& m : scene.materials) cullBackFaces = cullBackFaces || m.doubleSided;
-    // Geometry: the export's mesh (patch corners with their interpolated radiance).
+    // Geometry: the export's mesh (patch corners with their interpolated radiance, and normals).
     const ExportMesh mesh = exportMesh(patches, corners);
+    // Patches meeting at a corner share one vertex where their values there agree (the corners'
+    // interpolation gives them one): the building's 345,232 corners are 217,034 vertices.
     std::vector<float> vertices;
-    for (size_t i = 0; i < mesh.positions.size(); ++i)
-        for (const double v : {mesh.positions[i].x(), mesh.positions[i].y(), mesh.positions[i].z(), mesh.radiance[i][0],
-                               mesh.radiance[i][1], mesh.radiance[i][2]})
-            vertices.push_back(float(v));
+    std::vector<unsigned> vertexOf(mesh.positions.size());
+    std::map<std::array<float, 9>, unsigned> unique;
+    for (size_t i = 0; i < mesh.positions.size(); ++i) {
+        std::array<float, 9> v;
+        for (int c = 0; c < 3; ++c) {
+            v[size_t(c)] = float(mesh.positions[i][c]);
+            v[size_t(3 + c)] = float(mesh.radiance[i][c]);
+            v[size_t(6 + c)] = float(mesh.normals[i][c]);
+        }
+        const auto [at, added] = unique.emplace(v, unsigned(unique.size()));
+        if (added) vertices.insert(vertices.end(), v.begin(), v.end());
+        vertexOf[i] = at->second;
+    }
     std::vector<unsigned> triangles, edges;
     for (const auto& t : mesh.triangles)
-        for (int v : t) triangles.push_back(unsigned(v));
-    for (size_t i = 0, base = 0; i < patches.size(); base += patches.cornerCount[i], ++i)
+        for (int v : t) triangles.push_back(vertexOf[size_t(v)]);
+    std::vector<int> triangleObject;  // exportMesh's triangles run patch by patch
+    for (size_t i = 0, base = 0; i < patches.size(); base += patches.cornerCount[i], ++i) {
+        triangleObject.insert(triangleObject.end(), size_t(patches.cornerCount[i] - 2), patches.object[i]);
         for (unsigned k = 0; k < patches.cornerCount[i]; ++k) {
-            edges.push_back(unsigned(base) + k);
-            edges.push_back(unsigned(base) + (k + 1) % patches.cornerCount[i]);
+            edges.push_back(vertexOf[base + k]);
+            edges.push_back(vertexOf[base + (k + 1) % patches.cornerCount[i]]);
         }
-    // One vertex buffer (position, radiance), drawn as triangles or as patch outlines.
-    GLuint vertexBuffer = 0;
-    glGenBuffers(1, &vertexBuffer);
-    glBindBuffer(GL_ARRAY_BUFFER, vertexBuffer);
-    glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(vertices.size() * sizeof(float)), vertices.data(), GL_STATIC_DRAW);
-    auto vertexArray = [&](const std::vector<unsigned>& indices) {
-        GLuint array = 0, indexBuffer = 0;
-        glGenVertexArrays(1, &array);
-        glBindVertexArray(array);
-        glBindBuffer(GL_ARRAY_BUFFER, vertexBuffer);
-        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), nullptr);
-        glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), reinterpret_cast<void*>(3 * sizeof(float)));
-        glEnableVertexAttribArray(0);
-        glEnableVertexAttribArray(1);
-        glGenBuffers(1, &indexBuffer);
-        glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, indexBuffer);
-        glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(indices.size() * sizeof(unsigned)), indices.data(),
-                     GL_STATIC_DRAW);
-        return array;
-    };
-    const GLuint vao = vertexArray(triangles), edgeVao = vertexArray(edges);
+    }
+    const double sceneSize = patches.size() ? std::max(patchBounds(patches).diagonal().norm(), 1e-6) : 1.0;
+    // Optional only to be released while its context lives (before glfwDestroyWindow).
+    logDebug("view: ", mesh.positions.size(), " patch corners, ", vertices.size() / 9, " vertices");
+    std::optional<SceneDraw> drawn(std::in_place, scene, vertices, triangles, triangleObject, edges, sceneSize,
+                                   cullBackFaces);
+    SceneDraw& draw = *drawn;
+    const double probesStart = glfwGetTime();
+    draw.renderProbes();
+    if (draw.probes())
+        logInfo("view: ", draw.probes(), " mirror/glass probes (cube maps of the solved scene) in ",
+                glfwGetTime() - probesStart, " s");
     GLuint display = 0;
     glGenVertexArrays(1, &display);
-    const GLuint sceneProgram = program(kSceneVertex, kSceneFragment);
-    const GLuint displayProgram = program(kDisplayVertex, kDisplayFragment);
+    const GLuint displayProgram = gl::program(kDisplayVertex, kDisplayFragment);
 
     // The float target the scene is drawn into (linear radiance), resized with the window.
     GLuint fbo = 0, colour = 0, depth = 0;
@@ -368,7 +320,6 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
     glGenTextures(1, &gatherTexture);
     int shownPasses = 0;
     nav.camera = nav.start = start;
-    const double sceneSize = patches.size() ? std::max(patchBounds(patches).diagonal().norm(), 1e-6) : 1.0;
     float stops = float(options.exposureStops);
     int toneMap = 0;  // 0: clamp, as the previews; 1: Reinhard
     const double autoScale = exportExposure(mesh, 0);
@@ -380,6 +331,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
             "R resets, P prints the camera, +/- exposure, T tone mapping, G renders the final gather of the view, Esc "
             "quits");
 
+    double firstFrameEnd = 0;
     for (int frame = 0; !glfwWindowShouldClose(window); ++frame) {
         glfwPollEvents();
         const double now = glfwGetTime();
@@ -413,7 +365,9 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
             ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
             ImGui::Begin("penumbra", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
             ImGui::TextUnformatted(options.statistics.c_str());
-            ImGui::Text("%zu patches, %zu triangles", patches.size(), mesh.triangles.size());
+            ImGui::Text("%zu patches, %zu triangles, %zu vertices", patches.size(), mesh.triangles.size(),
+                        vertices.size() / 9);
+            ImGui::Text("%.1f frames/s", double(io.Framerate));
             ImGui::SliderFloat("exposure (stops)", &stops, -10.0f, 10.0f);
             ImGui::Combo("tone mapping (T)", &toneMap, "clamp (as the previews)\0Reinhard\0");
             ImGui::Checkbox("patch edges (E)", &nav.edges);
@@ -437,7 +391,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
         resizeTarget(width, height);
         Camera view = nav.camera;
         view.width = width, view.height = height;
-        const Eigen::Matrix4f vp = viewProjection(view, width, height, sceneSize);
+        const Eigen::Matrix4f vp = gl::viewProjection(view, width, height, sceneSize);
         // The progressive final gather: started on G, dropped as soon as the camera moves.
         if (startGather) {
             progressive.start(view);
@@ -468,7 +422,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
                 continue;
             }
             progressive.stop();
-            writePreviewPng(progressive.mean(), options.screenshot, options.exposureStops);
+            saveScreenshot(progressive.mean(), options);
             logInfo("view: wrote ", options.screenshot, " (", width, "x", height, ", final gather, ",
                     progressive.passes(), " passes)");
             ImGui::EndFrame();
@@ -480,26 +434,14 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
         glClearColor(0, 0, 0, 1);
         glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
         glEnable(GL_DEPTH_TEST);
-        glUseProgram(sceneProgram);
-        glUniformMatrix4fv(glGetUniformLocation(sceneProgram, "viewProjection"), 1, GL_FALSE, vp.data());
-        glUniform1i(glGetUniformLocation(sceneProgram, "edges"), 0);
-        glEnable(GL_POLYGON_OFFSET_FILL);
-        glPolygonOffset(1, 1);
-        // A double-sided object's back is an object of its own 1e-5 of the scene behind its front
-        // (addBackFaces, scene_loader.cpp): closer than the depth buffer tells apart from a scene's
-        // size away, so where the scene has any, back faces are culled rather than drawn black.
-        if (cullBackFaces) glEnable(GL_CULL_FACE);
-        glBindVertexArray(vao);
-        glDrawElements(GL_TRIANGLES, GLsizei(triangles.size()), GL_UNSIGNED_INT, nullptr);
-        glDisable(GL_CULL_FACE);
-        glDisable(GL_POLYGON_OFFSET_FILL);
-        if (nav.edges) {
-            glUniform1i(glGetUniformLocation(sceneProgram, "edges"), 1);
-            glBindVertexArray(edgeVao);
-            glDrawElements(GL_LINES, GLsizei(edges.size()), GL_UNSIGNED_INT, nullptr);
-        }
+        draw.draw(vp, view.position);
+        if (nav.edges) draw.drawEdges(vp);
 
         if (screenshot && !options.wholeWindow && frame + 1 >= options.frames) {
+            glFinish();
+            if (frame >= 2)  // the frames after the first (which builds what is drawn), as the panel counts them
+                logInfo("view: ", frame, " frames at ", width, "x", height, " in ", glfwGetTime() - firstFrameEnd,
+                        " s: ", frame / (glfwGetTime() - firstFrameEnd), " frames/s");
             std::vector<float> pixels(size_t(width) * size_t(height) * 4);
             glReadPixels(0, 0, width, height, GL_RGBA, GL_FLOAT, pixels.data());
             Image image(width, height);
@@ -508,7 +450,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
                     const float* p = &pixels[4 * (size_t(height - 1 - y) * size_t(width) + size_t(x))];
                     image.set(x, y, Rgb(p[0], p[1], p[2]));
                 }
-            writePreviewPng(image, options.screenshot, options.exposureStops);
+            saveScreenshot(image, options);
             logInfo("view: wrote ", options.screenshot, " (", width, "x", height, ", frame ", frame + 1, ")");
             ImGui::EndFrame();
             break;
@@ -541,11 +483,16 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
             break;
         }
         glfwSwapBuffers(window);
+        if (frame == 0) {
+            glFinish();
+            firstFrameEnd = glfwGetTime();
+        }
     }
     progressive.stop();
     ImGui_ImplOpenGL3_Shutdown();
     ImGui_ImplGlfw_Shutdown();
     ImGui::DestroyContext();
+    drawn.reset();
     glfwDestroyWindow(window);
 }
 
