@@ -187,7 +187,15 @@ struct SceneDraw::State {
     GLuint vao = 0, edgeVao = 0;
     GLuint diffuse = 0, specular = 0;  // programs
     GLuint nearest = 0;                // a sampler object: cube maps read without filtering
-    GLsizei diffuseCount = 0, edgeCount = 0;
+    GLsizei edgeCount = 0;
+    // The diffuse triangles in cells of a grid over the scene, each cell's contiguous: cells out of
+    // the view are not drawn, the others nearest first (hidden fragments then fail the depth test
+    // before shading). The building's 172,000 triangles are mostly out of sight.
+    struct Cell {
+        GLsizei first = 0, count = 0;
+        Eigen::AlignedBox3f box;
+    };
+    std::vector<Cell> cells;
     std::vector<Specular> objects;
     double sceneSize = 1;
     bool cullBackFaces = false;
@@ -208,7 +216,33 @@ SceneDraw::SceneDraw(const Scene& scene, const std::vector<float>& vertices, con
         std::vector<unsigned>& to = diffuse ? ordered : ofObject[size_t(triangleObject[t])];
         to.insert(to.end(), &triangles[3 * t], &triangles[3 * t] + 3);
     }
-    s.diffuseCount = GLsizei(ordered.size());
+    {
+        const auto at = [&](unsigned v) {
+            return Eigen::Vector3f(vertices[9 * v], vertices[9 * v + 1], vertices[9 * v + 2]);
+        };
+        Eigen::AlignedBox3f bounds;
+        for (unsigned v : ordered) bounds.extend(at(v));
+        constexpr int kGrid = 8;
+        const Eigen::Vector3f size = bounds.sizes().cwiseMax(1e-30f);
+        std::vector<std::vector<unsigned>> inCell(kGrid * kGrid * kGrid);
+        for (size_t k = 0; k + 2 < ordered.size(); k += 3) {
+            const Eigen::Vector3f centre = (at(ordered[k]) + at(ordered[k + 1]) + at(ordered[k + 2])) / 3;
+            int cell = 0;
+            for (int c = 0; c < 3; ++c)
+                cell = cell * kGrid + std::clamp(int((centre[c] - bounds.min()[c]) / size[c] * kGrid), 0, kGrid - 1);
+            inCell[size_t(cell)].insert(inCell[size_t(cell)].end(), &ordered[k], &ordered[k] + 3);
+        }
+        ordered.clear();
+        for (const std::vector<unsigned>& cell : inCell) {
+            if (cell.empty()) continue;
+            State::Cell c;
+            c.first = GLsizei(ordered.size());
+            c.count = GLsizei(cell.size());
+            for (unsigned v : cell) c.box.extend(at(v));
+            ordered.insert(ordered.end(), cell.begin(), cell.end());
+            s.cells.push_back(c);
+        }
+    }
     for (size_t o = 0; o < scene.objects.size(); ++o) {
         if (ofObject[o].empty()) continue;
         Specular sp;
@@ -363,7 +397,27 @@ void SceneDraw::drawAll(const Eigen::Matrix4f& viewProjection, const Vec3& eye, 
     glUniformMatrix4fv(glGetUniformLocation(s.diffuse, "viewProjection"), 1, GL_FALSE, viewProjection.data());
     glUniform1i(glGetUniformLocation(s.diffuse, "edges"), 0);
     glUniform3f(glGetUniformLocation(s.diffuse, "eye"), float(eye.x()), float(eye.y()), float(eye.z()));
-    glDrawElements(GL_TRIANGLES, s.diffuseCount, GL_UNSIGNED_INT, nullptr);
+    // The view's planes (Gribb and Hartmann): a cell wholly outside one is out of the view.
+    std::array<Eigen::Vector4f, 6> planes;
+    for (int r = 0; r < 3; ++r) {
+        planes[size_t(2 * r)] = viewProjection.row(3).transpose() + viewProjection.row(r).transpose();
+        planes[size_t(2 * r + 1)] = viewProjection.row(3).transpose() - viewProjection.row(r).transpose();
+    }
+    std::vector<std::pair<float, const State::Cell*>> shown;
+    const Eigen::Vector3f from = eye.cast<float>();
+    for (const State::Cell& c : s.cells) {
+        bool inside = true;
+        for (const Eigen::Vector4f& p : planes) {
+            Eigen::Vector3f far;
+            for (int k = 0; k < 3; ++k) far[k] = p[k] > 0 ? c.box.max()[k] : c.box.min()[k];
+            inside = inside && p.head<3>().dot(far) + p[3] >= 0;
+        }
+        if (inside) shown.emplace_back(c.box.squaredExteriorDistance(from), &c);
+    }
+    std::sort(shown.begin(), shown.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& [distance, c] : shown)
+        glDrawElements(GL_TRIANGLES, c->count, GL_UNSIGNED_INT,
+                       reinterpret_cast<const void*>(size_t(c->first) * sizeof(unsigned)));
     for (const Specular& sp : s.objects) {
         if (sp.object == exclude) continue;
         const void* first = reinterpret_cast<const void*>(size_t(sp.first) * sizeof(unsigned));
