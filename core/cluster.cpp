@@ -185,6 +185,12 @@ void await(MPI_Request& request, const char* what) {
 
 // Without MPI_THREAD_SERIALIZED (an MPI built without it) or alone, nothing is asked of anyone: each
 // rank takes the items dealt to it in turn (owns), from a shared counter over them.
+bool WorkQueue::asking() {
+    // PENUMBRA_DEAL_IN_TURN=1: items dealt in turn, as before the queue (to measure the two).
+    static const bool inTurn = envInt("PENUMBRA_DEAL_IN_TURN", 0) == 1;
+    return distributed() && g_anyThread && !inTurn;
+}
+
 WorkQueue::WorkQueue(int64_t count, std::function<void(int64_t)> finished)
     : count_(count), finished_(std::move(finished)), tag_(2 * (g_queues++ % 16000) + 1) {}
 
@@ -195,10 +201,7 @@ int64_t WorkQueue::next() {
     // host would (tests/test_cluster.cpp).
     static const int slow = envInt("PENUMBRA_TEST_SLOW_RANK", -1);
     if (slow == g_rank && distributed()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    // PENUMBRA_DEAL_IN_TURN=1: items dealt in turn, as before the queue (to measure the two).
-    static const bool inTurn = envInt("PENUMBRA_DEAL_IN_TURN", 0) == 1;
-    const bool asking = distributed() && g_anyThread && !inTurn;
-    if (!asking) {
+    if (!asking()) {
         // Items r, r + size, ...: the k-th of this rank's is item rank + k size.
         const int64_t k = next_.fetch_add(1), item = rank() + k * size();
         if (item >= count_) return -1;
@@ -221,7 +224,6 @@ int64_t WorkQueue::next() {
         check(MPI_Send(&report, 1, MPI_INT64_T, 0, tag_, MPI_COMM_WORLD), "asking for work (MPI_Send)");
         g_sent += sizeof report;
         await(request, "asking for work (MPI_Test)");
-        ++requests_;
         runFirst_ = run[0], runLeft_ = run[1];
         exhausted_ = runLeft_ == 0;
     }
@@ -246,7 +248,6 @@ void WorkQueue::serve() {
         const int64_t first = next_.fetch_add(want);
         int64_t run[2] = {first, std::clamp<int64_t>(count_ - first, 0, want)};
         told_ += run[1] == 0;
-        ++requests_;
         check(MPI_Send(run, 2, MPI_INT64_T, status.MPI_SOURCE, tag_ + 1, MPI_COMM_WORLD),
               "handing out work (MPI_Send)");
         g_sent += sizeof run;
@@ -262,7 +263,7 @@ void WorkQueue::done() {
 }
 
 void WorkQueue::finish() {
-    if (!distributed() || !g_anyThread || !leader() || envInt("PENUMBRA_DEAL_IN_TURN", 0) == 1) return;
+    if (!asking() || !leader()) return;
     for (;;) {
         {
             std::lock_guard<std::mutex> lock(mutex_);
@@ -301,25 +302,20 @@ void shareCounters(const CounterValues& before) {
     if (!distributed()) return;
     Packer packed;
     for (const auto& [name, value] : countersSince(before)) {
-        packed.put(uint64_t(name.size()));
-        packed.bytes += name;
-        packed.put(value);
+        packed.put(std::vector<char>(name.begin(), name.end()));
+        packed.put(uint64_t(value));
     }
     const std::vector<std::string> all = allGather(packed.bytes);
     for (int r = 0; r < size(); ++r) {
         if (r == rank()) continue;
         CounterValues theirs;
-        for (size_t at = 0; at < all[size_t(r)].size();) {
-            uint64_t length = 0, value = 0;
-            PENUMBRA_CHECK(at + sizeof length <= all[size_t(r)].size());
-            std::memcpy(&length, all[size_t(r)].data() + at, sizeof length);
-            at += sizeof length;
-            PENUMBRA_CHECK(at + length + sizeof value <= all[size_t(r)].size());
-            const std::string name = all[size_t(r)].substr(at, size_t(length));
-            at += size_t(length);
-            std::memcpy(&value, all[size_t(r)].data() + at, sizeof value);
-            at += sizeof value;
-            theirs[name] = value;
+        Unpacker in(all[size_t(r)]);
+        while (!in.done()) {
+            std::vector<char> name;
+            uint64_t value = 0;
+            in.get(name);
+            in.get(value);
+            theirs[std::string(name.begin(), name.end())] = value;
         }
         addCounterValues(theirs);
     }

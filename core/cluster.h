@@ -83,10 +83,10 @@ public:
     void finish();
     // The items this rank took, ascending.
     std::vector<int64_t> taken() const;
-    // Runs of items this rank asked for and received (rank 0: requests it answered).
-    int64_t requests() const { return requests_; }
 
 private:
+    // Whether the ranks ask rank 0 for runs (else each takes the items dealt to it in turn).
+    static bool asking();
     void serve();  // rank 0: answers the requests waiting
     int64_t count_;
     std::function<void(int64_t)> finished_;
@@ -97,7 +97,6 @@ private:
     int64_t runFirst_ = 0, runLeft_ = 0;  // other ranks: the run received, not yet taken
     bool exhausted_ = false;              // other ranks: told that none are left
     int told_ = 0;                        // rank 0: ranks told that none are left
-    int64_t requests_ = 0;
     std::vector<int64_t> taken_;
 };
 

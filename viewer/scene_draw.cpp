@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <map>
 
 #include "core/error.h"
 #include "core/log.h"
@@ -15,14 +16,17 @@ const char* kVertex = R"(#version 330 core
 layout(location = 0) in vec3 position;
 layout(location = 1) in vec3 radiance;
 layout(location = 2) in vec3 normal;
+layout(location = 3) in vec2 uv;
 uniform mat4 viewProjection;
 out vec3 vRadiance;
 out vec3 vWorld;
 out vec3 vNormal;
+out vec2 vUv;
 void main() {
     vRadiance = radiance;
     vWorld = position;
     vNormal = normal;
+    vUv = uv;
     gl_Position = viewProjection * vec4(position, 1.0);
 })";
 
@@ -38,6 +42,26 @@ void main() {
     float distance = length(vWorld - eye);
     if (edges == 1) { colour = vec4(0.0, 0.0, 0.0, distance); return; }
     colour = vec4(gl_FrontFacing ? vRadiance : vec3(0.0), distance);
+})";
+
+// A textured diffuse object: the light at its corners (E / pi, interpolated) times the reflectance
+// texel, plus the emission texel: the texture's detail on however coarse a mesh, as the headless
+// radiosity view shows it (render/radiosity_view.cpp TextureDetail).
+const char* kTexturedFragment = R"(#version 330 core
+in vec3 vRadiance;
+in vec3 vWorld;
+in vec2 vUv;
+uniform vec3 eye;
+uniform sampler2D reflectanceTexture;
+uniform sampler2D emissionTexture;
+uniform int textures;  // 1: a reflectance texture, 2: an emission texture, 3: both
+uniform vec3 reflectance;
+uniform vec3 emission;
+out vec4 colour;
+void main() {
+    vec3 rho = reflectance * ((textures % 2) == 1 ? texture(reflectanceTexture, vUv).rgb : vec3(1.0));
+    vec3 e = emission * (textures >= 2 ? texture(emissionTexture, vUv).rgb : vec3(1.0));
+    colour = vec4(gl_FrontFacing ? e + rho * vRadiance : vec3(0.0), length(vWorld - eye));
 })";
 
 // A mirror or glass object through its probe (see scene_draw.h).
@@ -180,6 +204,24 @@ struct Specular {
     std::array<GLuint, 2> probe{0, 0};  // generations: mirrors and glass black, then through the first
 };
 
+// A textured diffuse object's triangles and its material's textures.
+struct Textured {
+    GLsizei first = 0, count = 0;
+    GLuint reflectance = 0, emission = 0;  // 0: none
+    Rgb reflectanceFactor = Rgb::Ones(), emissionFactor = Rgb::Zero();
+};
+
+// Whether an object is drawn with its textures: a textured diffuse material on an object with
+// texture coordinates (the patches then carry them). Its vertices hold the light E / pi.
+bool shownTextured(const Scene& scene, const SceneObject& o) {
+    const Material& m = scene.materialOf(o);
+    return m.type == MaterialType::Diffuse && m.textured() && o.hasUv();
+}
+
+GLint glWrap(Wrap w) {
+    return w == Wrap::Clamp ? GL_CLAMP_TO_EDGE : w == Wrap::Mirror ? GL_MIRRORED_REPEAT : GL_REPEAT;
+}
+
 }  // namespace
 
 struct SceneDraw::State {
@@ -188,37 +230,42 @@ struct SceneDraw::State {
     GLuint diffuse = 0, specular = 0;  // programs
     GLuint nearest = 0;                // a sampler object: cube maps read without filtering
     GLsizei edgeCount = 0;
-    // The diffuse triangles in cells of a grid over the scene, each cell's contiguous: cells out of
-    // the view are not drawn, the others nearest first (hidden fragments then fail the depth test
-    // before shading). The building's 172,000 triangles are mostly out of sight.
+    // The plain diffuse triangles in cells of a grid over the scene, each cell's contiguous: cells
+    // out of the view are not drawn (looking into one of the building's rooms, most of it), the
+    // others nearest first (hidden fragments then fail the depth test before shading).
     struct Cell {
         GLsizei first = 0, count = 0;
         Eigen::AlignedBox3f box;
     };
     std::vector<Cell> cells;
     std::vector<Specular> objects;
+    std::vector<Textured> textured;
+    GLuint texturedProgram = 0;
+    std::map<const Texture*, GLuint> textures;  // each image once
     double sceneSize = 1;
     bool cullBackFaces = false;
 };
 
 SceneDraw::SceneDraw(const Scene& scene, const std::vector<float>& vertices, const std::vector<unsigned>& triangles,
-                     const std::vector<int>& triangleObject, const std::vector<unsigned>& edges, double sceneSize,
-                     bool cullBackFaces)
+                     const std::vector<int>& triangleObject, const std::vector<unsigned>& edges, bool textures,
+                     double sceneSize, bool cullBackFaces)
     : s_(std::make_unique<State>()) {
     State& s = *s_;
     s.sceneSize = sceneSize;
     s.cullBackFaces = cullBackFaces;
-    // The diffuse triangles first, then each mirror or glass object's.
+    // The plain diffuse triangles first (in cells), then each textured object's, then each mirror
+    // or glass object's.
     std::vector<unsigned> ordered;
     std::vector<std::vector<unsigned>> ofObject(scene.objects.size());
     for (size_t t = 0; t < triangleObject.size(); ++t) {
-        const bool diffuse = scene.materialOf(scene.objects[size_t(triangleObject[t])]).type == MaterialType::Diffuse;
-        std::vector<unsigned>& to = diffuse ? ordered : ofObject[size_t(triangleObject[t])];
+        const SceneObject& o = scene.objects[size_t(triangleObject[t])];
+        const bool plain = scene.materialOf(o).type == MaterialType::Diffuse && !(textures && shownTextured(scene, o));
+        std::vector<unsigned>& to = plain ? ordered : ofObject[size_t(triangleObject[t])];
         to.insert(to.end(), &triangles[3 * t], &triangles[3 * t] + 3);
     }
     {
         const auto at = [&](unsigned v) {
-            return Eigen::Vector3f(vertices[9 * v], vertices[9 * v + 1], vertices[9 * v + 2]);
+            return Eigen::Vector3f(vertices[kStride * v], vertices[kStride * v + 1], vertices[kStride * v + 2]);
         };
         Eigen::AlignedBox3f bounds;
         for (unsigned v : ordered) bounds.extend(at(v));
@@ -243,14 +290,52 @@ SceneDraw::SceneDraw(const Scene& scene, const std::vector<float>& vertices, con
             s.cells.push_back(c);
         }
     }
+    // Each image once, as the ray tracers read it (bilinear between texel centres, the file's wraps),
+    // mipmapped for the distance.
+    const auto upload = [&](const std::shared_ptr<const Texture>& t) -> GLuint {
+        if (!t) return 0;
+        if (const auto it = s.textures.find(t.get()); it != s.textures.end()) return it->second;
+        std::vector<float> rgb;
+        rgb.reserve(size_t(t->width()) * size_t(t->height()) * 3);
+        for (int y = 0; y < t->height(); ++y)  // rows from the top: v runs down the image, as t does up the rows
+            for (int x = 0; x < t->width(); ++x) {
+                const Rgb c = t->texel(x, y);
+                rgb.insert(rgb.end(), {float(c[0]), float(c[1]), float(c[2])});
+            }
+        GLuint name = 0;
+        glGenTextures(1, &name);
+        glBindTexture(GL_TEXTURE_2D, name);
+        glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, t->width(), t->height(), 0, GL_RGB, GL_FLOAT, rgb.data());
+        glGenerateMipmap(GL_TEXTURE_2D);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, glWrap(t->wrapU()));
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, glWrap(t->wrapV()));
+        return s.textures[t.get()] = name;
+    };
     for (size_t o = 0; o < scene.objects.size(); ++o) {
-        if (ofObject[o].empty()) continue;
+        if (ofObject[o].empty() || scene.materialOf(scene.objects[o]).type != MaterialType::Diffuse) continue;
+        const Material& m = scene.materialOf(scene.objects[o]);
+        Textured t;
+        t.first = GLsizei(ordered.size());
+        t.count = GLsizei(ofObject[o].size());
+        t.reflectance = upload(m.reflectanceTexture);
+        t.emission = upload(m.emissionTexture);
+        t.reflectanceFactor = m.reflectance;
+        t.emissionFactor = m.emission;
+        ordered.insert(ordered.end(), ofObject[o].begin(), ofObject[o].end());
+        s.textured.push_back(t);
+    }
+    for (size_t o = 0; o < scene.objects.size(); ++o) {
+        if (ofObject[o].empty() || scene.materialOf(scene.objects[o]).type == MaterialType::Diffuse) continue;
         Specular sp;
         sp.object = int(o);
         sp.first = GLsizei(ordered.size());
         sp.count = GLsizei(ofObject[o].size());
         Eigen::AlignedBox3d box;
-        for (unsigned v : ofObject[o]) box.extend(Vec3(vertices[9 * v], vertices[9 * v + 1], vertices[9 * v + 2]));
+        for (unsigned v : ofObject[o])
+            box.extend(Vec3(vertices[kStride * v], vertices[kStride * v + 1], vertices[kStride * v + 2]));
         sp.probeCentre = box.center();
         if (const std::optional<RaySphere> ball = exactSphereOf(scene, scene.objects[o])) {
             sp.sphere = true;
@@ -271,7 +356,9 @@ SceneDraw::SceneDraw(const Scene& scene, const std::vector<float>& vertices, con
     std::vector<float> placed = vertices;
     for (const Specular& sp : s.objects) {
         if (!sp.sphere) continue;
-        const auto at = [&](unsigned v) { return Vec3(vertices[9 * v], vertices[9 * v + 1], vertices[9 * v + 2]); };
+        const auto at = [&](unsigned v) {
+            return Vec3(vertices[kStride * v], vertices[kStride * v + 1], vertices[kStride * v + 2]);
+        };
         double widest = 0;  // sine of the widest angular radius
         for (GLsizei k = sp.first; k + 2 < sp.first + sp.count; k += 3) {
             const Vec3 a = at(ordered[size_t(k)]), b = at(ordered[size_t(k) + 1]), c = at(ordered[size_t(k) + 2]);
@@ -284,7 +371,7 @@ SceneDraw::SceneDraw(const Scene& scene, const std::vector<float>& vertices, con
         for (GLsizei k = sp.first; k < sp.first + sp.count; ++k) {
             const unsigned v = ordered[size_t(k)];
             const Vec3 x = sp.centre + out * (at(v) - sp.centre);
-            for (int c = 0; c < 3; ++c) placed[9 * v + unsigned(c)] = float(x[c]);
+            for (int c = 0; c < 3; ++c) placed[kStride * v + unsigned(c)] = float(x[c]);
         }
     }
     glGenBuffers(1, &s.vertexBuffer);
@@ -295,8 +382,8 @@ SceneDraw::SceneDraw(const Scene& scene, const std::vector<float>& vertices, con
         glGenVertexArrays(1, &array);
         glBindVertexArray(array);
         glBindBuffer(GL_ARRAY_BUFFER, s.vertexBuffer);
-        for (GLuint a = 0; a < 3; ++a) {
-            glVertexAttribPointer(a, 3, GL_FLOAT, GL_FALSE, 9 * sizeof(float),
+        for (GLuint a = 0; a < 4; ++a) {
+            glVertexAttribPointer(a, a < 3 ? 3 : 2, GL_FLOAT, GL_FALSE, kStride * sizeof(float),
                                   reinterpret_cast<void*>(3 * a * sizeof(float)));
             glEnableVertexAttribArray(a);
         }
@@ -310,6 +397,7 @@ SceneDraw::SceneDraw(const Scene& scene, const std::vector<float>& vertices, con
     s.edgeVao = vertexArray(edges, s.edgeBuffer);
     s.edgeCount = GLsizei(edges.size());
     s.diffuse = gl::program(kVertex, kDiffuseFragment);
+    if (!s.textured.empty()) s.texturedProgram = gl::program(kVertex, kTexturedFragment);
     if (!s.objects.empty()) {
         s.specular = gl::program(kVertex, kSpecularFragment);
         glGenSamplers(1, &s.nearest);
@@ -325,6 +413,8 @@ SceneDraw::~SceneDraw() {
     glDeleteVertexArrays(1, &s.edgeVao);
     for (GLuint b : {s.vertexBuffer, s.triangleBuffer, s.edgeBuffer}) glDeleteBuffers(1, &b);
     glDeleteProgram(s.diffuse);
+    if (s.texturedProgram) glDeleteProgram(s.texturedProgram);
+    for (const auto& [texture, name] : s.textures) glDeleteTextures(1, &name);
     if (s.specular) glDeleteProgram(s.specular);
     if (s.nearest) glDeleteSamplers(1, &s.nearest);
 }
@@ -418,6 +508,30 @@ void SceneDraw::drawAll(const Eigen::Matrix4f& viewProjection, const Vec3& eye, 
     for (const auto& [distance, c] : shown)
         glDrawElements(GL_TRIANGLES, c->count, GL_UNSIGNED_INT,
                        reinterpret_cast<const void*>(size_t(c->first) * sizeof(unsigned)));
+    if (!s.textured.empty()) {
+        const GLuint p = s.texturedProgram;
+        glUseProgram(p);
+        glUniformMatrix4fv(glGetUniformLocation(p, "viewProjection"), 1, GL_FALSE, viewProjection.data());
+        glUniform3f(glGetUniformLocation(p, "eye"), float(eye.x()), float(eye.y()), float(eye.z()));
+        glUniform1i(glGetUniformLocation(p, "reflectanceTexture"), 0);
+        glUniform1i(glGetUniformLocation(p, "emissionTexture"), 1);
+        for (const Textured& t : s.textured) {
+            glActiveTexture(GL_TEXTURE0);
+            glBindTexture(GL_TEXTURE_2D, t.reflectance);
+            glActiveTexture(GL_TEXTURE1);
+            glBindTexture(GL_TEXTURE_2D, t.emission);
+            glBindSampler(1, 0);
+            glUniform1i(glGetUniformLocation(p, "textures"), (t.reflectance ? 1 : 0) + (t.emission ? 2 : 0));
+            const Rgb& r = t.reflectanceFactor;
+            const Rgb& e = t.emissionFactor;
+            glUniform3f(glGetUniformLocation(p, "reflectance"), float(r[0]), float(r[1]), float(r[2]));
+            glUniform3f(glGetUniformLocation(p, "emission"), float(e[0]), float(e[1]), float(e[2]));
+            glDrawElements(GL_TRIANGLES, t.count, GL_UNSIGNED_INT,
+                           reinterpret_cast<const void*>(size_t(t.first) * sizeof(unsigned)));
+        }
+        glActiveTexture(GL_TEXTURE0);
+        glUseProgram(s.diffuse);
+    }
     for (const Specular& sp : s.objects) {
         if (sp.object == exclude) continue;
         const void* first = reinterpret_cast<const void*>(size_t(sp.first) * sizeof(unsigned));

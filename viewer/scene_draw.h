@@ -1,5 +1,6 @@
 // The viewer's drawing of a solved scene (needs a current OpenGL 3.3 context): the diffuse patches
-// by their interpolated radiance, and the mirrors and glass from the solution, through probes:
+// by their interpolated radiance (textured ones by their light times the texels, as the headless
+// radiosity view shows them), and the mirrors and glass from the solution, through probes:
 //  - a probe per mirror or glass object: a cube map, rendered once from the object's centre (a
 //    sphere's centre, else its box's), of the radiance of everything but the object and of its
 //    distance from the centre; rendered twice, the second time with the other mirrors and glass
@@ -26,13 +27,17 @@ namespace penumbra {
 
 class SceneDraw {
 public:
-    // `vertices`: the export mesh's vertices (position, radiance B/pi, normal: 9 floats each),
-    // `triangles` its triangles (3 indices each) with `triangleObject` the object of each, `edges`
-    // the patch outlines (2 indices each). `cullBackFaces` where the scene has double-sided
-    // materials (their backs lie closer behind than the depth buffer tells apart).
+    // Floats a vertex: position, radiance B/pi (on a textured object the light E/pi, which its
+    // textures multiply), normal, texture coordinates.
+    static constexpr int kStride = 11;
+    // `vertices` (kStride floats each), `triangles` (3 indices each) with `triangleObject` the object
+    // of each, `edges` the patch outlines (2 indices each). `textures`: the textured diffuse objects'
+    // vertices hold their light and coordinates (else every object is drawn by its radiance).
+    // `cullBackFaces` where the scene has double-sided materials (their backs lie closer behind than
+    // the depth buffer tells apart).
     SceneDraw(const Scene& scene, const std::vector<float>& vertices, const std::vector<unsigned>& triangles,
-              const std::vector<int>& triangleObject, const std::vector<unsigned>& edges, double sceneSize,
-              bool cullBackFaces);
+              const std::vector<int>& triangleObject, const std::vector<unsigned>& edges, bool textures,
+              double sceneSize, bool cullBackFaces);
     ~SceneDraw();
 
     // Renders the probes (at start; the solution does not change while the window is open).

@@ -21,6 +21,7 @@
 #include "io/export.h"
 #include "io/image_io.h"
 #include "render/final_gather.h"
+#include "render/radiosity_view.h"
 #include "viewer/gl.h"
 #include "viewer/scene_draw.h"
 
@@ -238,21 +239,32 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
     for (const Material& m : scene.materials) cullBackFaces = cullBackFaces || m.doubleSided;
     // Geometry: the export's mesh (patch corners with their interpolated radiance, and normals).
     const ExportMesh mesh = exportMesh(patches, corners);
+    // Textured objects show their light at the corners times the texels (as the headless radiosity
+    // view does), the patches' texture coordinates with it.
+    const bool textures = scene.hasTextures() && patches.hasUv();
+    const CornerValues irradiance = textures ? cornerIrradiance(scene, patches, corners) : CornerValues{};
     // Patches meeting at a corner share one vertex where their values there agree (the corners'
     // interpolation gives them one): the building's 345,232 corners are 217,034 vertices.
     std::vector<float> vertices;
     std::vector<unsigned> vertexOf(mesh.positions.size());
-    std::map<std::array<float, 9>, unsigned> unique;
-    for (size_t i = 0; i < mesh.positions.size(); ++i) {
-        std::array<float, 9> v;
-        for (int c = 0; c < 3; ++c) {
-            v[size_t(c)] = float(mesh.positions[i][c]);
-            v[size_t(3 + c)] = float(mesh.radiance[i][c]);
-            v[size_t(6 + c)] = float(mesh.normals[i][c]);
+    std::map<std::array<float, SceneDraw::kStride>, unsigned> unique;
+    for (size_t i = 0, corner = 0; i < patches.size(); ++i) {
+        const SceneObject& object = scene.objects[size_t(patches.object[i])];
+        const Material& material = scene.materialOf(object);
+        const bool light = textures && material.type == MaterialType::Diffuse && material.textured() && object.hasUv();
+        for (size_t k = 0; k < patches.cornerCount[i]; ++k, ++corner) {
+            std::array<float, SceneDraw::kStride> v{};
+            const Rgb shown = light ? Rgb(irradiance[i][k] * kInvPi) : mesh.radiance[corner];
+            for (int c = 0; c < 3; ++c) {
+                v[size_t(c)] = float(mesh.positions[corner][c]);
+                v[size_t(3 + c)] = float(shown[c]);
+                v[size_t(6 + c)] = float(mesh.normals[corner][c]);
+            }
+            if (textures) v[9] = float(patches.uv[i][k].x()), v[10] = float(patches.uv[i][k].y());
+            const auto [at, added] = unique.emplace(v, unsigned(unique.size()));
+            if (added) vertices.insert(vertices.end(), v.begin(), v.end());
+            vertexOf[corner] = at->second;
         }
-        const auto [at, added] = unique.emplace(v, unsigned(unique.size()));
-        if (added) vertices.insert(vertices.end(), v.begin(), v.end());
-        vertexOf[i] = at->second;
     }
     std::vector<unsigned> triangles, edges;
     for (const auto& t : mesh.triangles)
@@ -267,9 +279,9 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
     }
     const double sceneSize = patches.size() ? std::max(patchBounds(patches).diagonal().norm(), 1e-6) : 1.0;
     // Optional only to be released while its context lives (before glfwDestroyWindow).
-    logDebug("view: ", mesh.positions.size(), " patch corners, ", vertices.size() / 9, " vertices");
-    std::optional<SceneDraw> drawn(std::in_place, scene, vertices, triangles, triangleObject, edges, sceneSize,
-                                   cullBackFaces);
+    logDebug("view: ", mesh.positions.size(), " patch corners, ", vertices.size() / SceneDraw::kStride, " vertices");
+    std::optional<SceneDraw> drawn(std::in_place, scene, vertices, triangles, triangleObject, edges, textures,
+                                   sceneSize, cullBackFaces);
     SceneDraw& draw = *drawn;
     const double probesStart = glfwGetTime();
     draw.renderProbes();
@@ -366,7 +378,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
             ImGui::Begin("penumbra", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
             ImGui::TextUnformatted(options.statistics.c_str());
             ImGui::Text("%zu patches, %zu triangles, %zu vertices", patches.size(), mesh.triangles.size(),
-                        vertices.size() / 9);
+                        vertices.size() / SceneDraw::kStride);
             ImGui::Text("%.1f frames/s", double(io.Framerate));
             ImGui::SliderFloat("exposure (stops)", &stops, -10.0f, 10.0f);
             ImGui::Combo("tone mapping (T)", &toneMap, "clamp (as the previews)\0Reinhard\0");
@@ -439,9 +451,20 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
 
         if (screenshot && !options.wholeWindow && frame + 1 >= options.frames) {
             glFinish();
-            if (frame >= 2)  // the frames after the first (which builds what is drawn), as the panel counts them
-                logInfo("view: ", frame, " frames at ", width, "x", height, " in ", glfwGetTime() - firstFrameEnd,
-                        " s: ", frame / (glfwGetTime() - firstFrameEnd), " frames/s");
+            if (frame >= 2) {  // the frames after the first (which builds what is drawn), as the panel counts them
+                const double seconds = glfwGetTime() - firstFrameEnd;
+                // A new view's own cost (without the tone mapping, the panel and the swap): the scene
+                // drawn ten times more, each finished.
+                const double drawStart = glfwGetTime();
+                for (int again = 0; again < 10; ++again) {
+                    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+                    draw.draw(vp, view.position);
+                    if (nav.edges) draw.drawEdges(vp);
+                    glFinish();
+                }
+                logInfo("view: ", frame, " frames at ", width, "x", height, " in ", seconds, " s: ", frame / seconds,
+                        " frames/s; the scene alone drawn in ", 1e3 * (glfwGetTime() - drawStart) / 10, " ms");
+            }
             std::vector<float> pixels(size_t(width) * size_t(height) * 4);
             glReadPixels(0, 0, width, height, GL_RGBA, GL_FLOAT, pixels.data());
             Image image(width, height);
