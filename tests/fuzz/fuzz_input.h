@@ -6,17 +6,26 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <set>
 #include <string>
 
 namespace penumbra::fuzz {
 
-// The path written, or "" if it could not be.
+// The path written, or "" if it could not be. The file goes when the fuzzer exits.
 inline std::string inputFile(const std::string& name, const std::string& ext, const uint8_t* data, size_t size) {
     const std::string path = "/tmp/penumbra-fuzz-" + name + "-" + std::to_string(getpid()) + ext;
+    struct Written {
+        std::set<std::string> paths;
+        ~Written() {
+            for (const std::string& p : paths) std::remove(p.c_str());
+        }
+    };
+    static Written written;
+    written.paths.insert(path);
     FILE* f = std::fopen(path.c_str(), "wb");
     if (!f) return "";
-    const bool written = std::fwrite(data, 1, size, f) == size;
-    return std::fclose(f) == 0 && written ? path : "";
+    const bool whole = std::fwrite(data, 1, size, f) == size;
+    return std::fclose(f) == 0 && whole ? path : "";
 }
 
 }  // namespace penumbra::fuzz
