@@ -234,6 +234,11 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
     if (!window) throw Error("view: no OpenGL 3.3 core context could be created on this display");
     glfwMakeContextCurrent(window);
     glfwSwapInterval(screenshot ? 0 : 1);
+    const auto glText = [](GLenum name) {
+        const GLubyte* text = glGetString(name);
+        return text ? std::string(reinterpret_cast<const char*>(text)) : std::string("unknown");
+    };
+    logInfo("view: OpenGL ", glText(GL_VERSION), " on ", glText(GL_RENDERER));
 
     bool cullBackFaces = false;
     for (const Material& m : scene.materials) cullBackFaces = cullBackFaces || m.doubleSided;
