@@ -211,13 +211,6 @@ struct Textured {
     Rgb reflectanceFactor = Rgb::Ones(), emissionFactor = Rgb::Zero();
 };
 
-// Whether an object is drawn with its textures: a textured diffuse material on an object with
-// texture coordinates (the patches then carry them). Its vertices hold the light E / pi.
-bool shownTextured(const Scene& scene, const SceneObject& o) {
-    const Material& m = scene.materialOf(o);
-    return m.type == MaterialType::Diffuse && m.textured() && o.hasUv();
-}
-
 GLint glWrap(Wrap w) {
     return w == Wrap::Clamp ? GL_CLAMP_TO_EDGE : w == Wrap::Mirror ? GL_MIRRORED_REPEAT : GL_REPEAT;
 }
@@ -246,6 +239,11 @@ struct SceneDraw::State {
     bool cullBackFaces = false;
 };
 
+bool SceneDraw::showsTextures(const Scene& scene, const SceneObject& o) {
+    const Material& m = scene.materialOf(o);
+    return m.type == MaterialType::Diffuse && m.textured() && o.hasUv();
+}
+
 SceneDraw::SceneDraw(const Scene& scene, const std::vector<float>& vertices, const std::vector<unsigned>& triangles,
                      const std::vector<int>& triangleObject, const std::vector<unsigned>& edges, bool textures,
                      double sceneSize, bool cullBackFaces)
@@ -259,7 +257,7 @@ SceneDraw::SceneDraw(const Scene& scene, const std::vector<float>& vertices, con
     std::vector<std::vector<unsigned>> ofObject(scene.objects.size());
     for (size_t t = 0; t < triangleObject.size(); ++t) {
         const SceneObject& o = scene.objects[size_t(triangleObject[t])];
-        const bool plain = scene.materialOf(o).type == MaterialType::Diffuse && !(textures && shownTextured(scene, o));
+        const bool plain = scene.materialOf(o).type == MaterialType::Diffuse && !(textures && showsTextures(scene, o));
         std::vector<unsigned>& to = plain ? ordered : ofObject[size_t(triangleObject[t])];
         to.insert(to.end(), &triangles[3 * t], &triangles[3 * t] + 3);
     }

@@ -30,6 +30,9 @@ public:
     // Floats a vertex: position, radiance B/pi (on a textured object the light E/pi, which its
     // textures multiply), normal, texture coordinates.
     static constexpr int kStride = 11;
+    // Whether an object is drawn with its textures: a textured diffuse material on an object with
+    // texture coordinates (the patches then carry them). Its vertices hold the light E / pi.
+    static bool showsTextures(const Scene& scene, const SceneObject& o);
     // `vertices` (kStride floats each), `triangles` (3 indices each) with `triangleObject` the object
     // of each, `edges` the patch outlines (2 indices each). `textures`: the textured diffuse objects'
     // vertices hold their light and coordinates (else every object is drawn by its radiance).

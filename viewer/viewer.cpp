@@ -254,9 +254,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
     std::vector<unsigned> vertexOf(mesh.positions.size());
     std::map<std::array<float, SceneDraw::kStride>, unsigned> unique;
     for (size_t i = 0, corner = 0; i < patches.size(); ++i) {
-        const SceneObject& object = scene.objects[size_t(patches.object[i])];
-        const Material& material = scene.materialOf(object);
-        const bool light = textures && material.type == MaterialType::Diffuse && material.textured() && object.hasUv();
+        const bool light = textures && SceneDraw::showsTextures(scene, scene.objects[size_t(patches.object[i])]);
         for (size_t k = 0; k < patches.cornerCount[i]; ++k, ++corner) {
             std::array<float, SceneDraw::kStride> v{};
             const Rgb shown = light ? Rgb(irradiance[i][k] * kInvPi) : mesh.radiance[corner];
@@ -283,8 +281,8 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
         }
     }
     const double sceneSize = patches.size() ? std::max(patchBounds(patches).diagonal().norm(), 1e-6) : 1.0;
-    // Optional only to be released while its context lives (before glfwDestroyWindow).
     logDebug("view: ", mesh.positions.size(), " patch corners, ", vertices.size() / SceneDraw::kStride, " vertices");
+    // Optional only to be released while its context lives (before glfwDestroyWindow).
     std::optional<SceneDraw> drawn(std::in_place, scene, vertices, triangles, triangleObject, edges, textures,
                                    sceneSize, cullBackFaces);
     SceneDraw& draw = *drawn;
