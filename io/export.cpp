@@ -362,12 +362,8 @@ RoundTrip writeGltfRoundTrip(const Scene& scene, const SolveResult& stored, cons
     // What a texel holds at a point of patch i (Embree's parameters u, v): the light E/pi, or the
     // radiance rho(x) E/pi + emission with the texel of the material's textures there.
     const auto texel = [&](size_t i, double u, double v) -> Rgb {
-        const Rgb light = interpolateAt(stored.patches, i, u, v, irradiance[i]) * kInvPi;
-        if (holds == LightmapHolds::Light) return light;
-        const Material& m = scene.materials[size_t(scene.objects[size_t(stored.patches.object[i])].material)];
-        const Vec2 uv = stored.patches.hasUv() ? stored.patches.uvAtHit(i, u, v) : Vec2::Zero();
-        const Vec2* at = stored.patches.hasUv() ? &uv : nullptr;
-        return m.reflectanceAt(at) * light + m.emissionAt(at);
+        if (holds == LightmapHolds::Light) return interpolateAt(stored.patches, i, u, v, irradiance[i]) * kInvPi;
+        return radianceFromIrradiance(scene, stored.patches, i, u, v, irradiance[i]);
     };
     std::set<int> unlit;
     for (Lit& l : lit) {

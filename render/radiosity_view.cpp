@@ -21,6 +21,16 @@ CornerValues cornerIrradiance(const Scene& scene, const PatchSet& patches, const
     return out;
 }
 
+Rgb radianceFromIrradiance(const Scene& scene, const PatchSet& patches, size_t p, double u, double v,
+                           const std::array<Rgb, 4>& cornerIrradiance) {
+    const SceneObject& o = scene.objects[size_t(patches.object[p])];
+    const Material& m = scene.materialOf(o);
+    const bool at = patches.hasUv() && o.hasUv();
+    const Vec2 uv = at ? patches.uvAtHit(p, u, v) : Vec2::Zero();
+    return m.emissionAt(at ? &uv : nullptr) +
+           m.reflectanceAt(at ? &uv : nullptr) * interpolateAt(patches, p, u, v, cornerIrradiance) * kInvPi;
+}
+
 namespace {
 
 // Texture detail finer than the patches: a textured patch shows the irradiance at its corners
@@ -37,9 +47,7 @@ public:
     // Radiance `L` interpolated from the solution at Embree's (u, v) on patch p, with the texture.
     Rgb operator()(size_t p, double u, double v, const Rgb& L) const {
         if (irradiance_.empty() || !textured(p)) return L;
-        const Vec2 uv = patches_.uvAtHit(p, u, v);
-        const Material& m = material(p);
-        return m.emissionAt(&uv) + m.reflectanceAt(&uv) * interpolateAt(patches_, p, u, v, irradiance_[p]) * kInvPi;
+        return radianceFromIrradiance(scene_, patches_, p, u, v, irradiance_[p]);
     }
 
 private:

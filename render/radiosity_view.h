@@ -33,6 +33,12 @@ Image renderRadiosityView(const Scene& scene, const Camera& camera, const PatchS
 // vertex (vertex_radiosity.cpp), so this is the light at the vertex whatever the patch's reflectance.
 CornerValues cornerIrradiance(const Scene& scene, const PatchSet& patches, const CornerValues& cornerRadiosity);
 
+// The radiance leaving a diffuse patch p at Embree's parameters (u, v), from the irradiance at its
+// corners (cornerIrradiance): rho(x) E / pi + L_e(x), with the material's texels at the point where
+// the object has texture coordinates (else the textures' means).
+Rgb radianceFromIrradiance(const Scene& scene, const PatchSet& patches, size_t p, double u, double v,
+                           const std::array<Rgb, 4>& cornerIrradiance);
+
 // Radiosity at parameters (u, v) of a patch hit, from its corner values (Embree's quad coordinates;
 // barycentric on triangles).
 Rgb interpolateAt(const PatchSet& patches, size_t patch, double u, double v, const std::array<Rgb, 4>& corner);
