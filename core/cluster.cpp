@@ -134,19 +134,63 @@ std::vector<std::string> allGather(const std::string& mine) {
     return all;
 }
 
-std::string broadcast(const std::string& fromLeader) {
-    if (!g_started || g_alone) return fromLeader;
+std::string broadcast(const std::string& bytes, int root) {
+    if (!g_started || g_alone) return bytes;
     barrier();
-    long long length = static_cast<long long>(fromLeader.size());
-    check(MPI_Bcast(&length, 1, MPI_LONG_LONG, 0, MPI_COMM_WORLD), "broadcasting a size (MPI_Bcast)");
-    std::string bytes = g_rank == 0 ? fromLeader : std::string(size_t(length), '\0');
+    long long length = static_cast<long long>(bytes.size());
+    check(MPI_Bcast(&length, 1, MPI_LONG_LONG, root, MPI_COMM_WORLD), "broadcasting a size (MPI_Bcast)");
+    std::string out = g_rank == root ? bytes : std::string(size_t(length), '\0');
     const long long kStep = roundBytes();
     for (long long done = 0; done < length; done += kStep) {
         const int count = int(std::min(kStep, length - done));
-        check(MPI_Bcast(bytes.data() + done, count, MPI_BYTE, 0, MPI_COMM_WORLD), "broadcasting (MPI_Bcast)");
-        if (g_rank == 0) g_sent += uint64_t(count);
+        check(MPI_Bcast(out.data() + done, count, MPI_BYTE, root, MPI_COMM_WORLD), "broadcasting (MPI_Bcast)");
+        if (g_rank == root) g_sent += uint64_t(count);
     }
-    return bytes;
+    return out;
+}
+
+std::vector<std::string> exchange(const std::vector<std::string>& toEach) {
+    if (!g_started || g_alone) return {toEach.at(0)};
+    PENUMBRA_CHECK(toEach.size() == size_t(g_size));
+    barrier();
+    const int n = g_size;
+    std::vector<long long> sending(static_cast<size_t>(n)), receiving(static_cast<size_t>(n));
+    for (int r = 0; r < n; ++r) sending[size_t(r)] = static_cast<long long>(toEach[size_t(r)].size());
+    check(MPI_Alltoall(sending.data(), 1, MPI_LONG_LONG, receiving.data(), 1, MPI_LONG_LONG, MPI_COMM_WORLD),
+          "exchanging sizes (MPI_Alltoall)");
+    std::vector<std::string> from(static_cast<size_t>(n));
+    for (int r = 0; r < n; ++r) from[size_t(r)].resize(size_t(receiving[size_t(r)]));
+    // In steps of at most roundBytes() / ranks to and from each rank (MPI's counts are ints), as many
+    // as the longest message anywhere needs: every rank takes part in every step.
+    const long long kStep = std::max(1LL, roundBytes() / n);
+    long long longest = 0, longestAnywhere = 0;
+    for (int r = 0; r < n; ++r) longest = std::max({longest, sending[size_t(r)], receiving[size_t(r)]});
+    check(MPI_Allreduce(&longest, &longestAnywhere, 1, MPI_LONG_LONG, MPI_MAX, MPI_COMM_WORLD),
+          "exchanging sizes (MPI_Allreduce)");
+    for (long long done = 0; done < longestAnywhere; done += kStep) {
+        std::vector<int> sendCounts(static_cast<size_t>(n)), sendOffsets(static_cast<size_t>(n)),
+            receiveCounts(static_cast<size_t>(n)), receiveOffsets(static_cast<size_t>(n));
+        long long sent = 0, received = 0;
+        for (int r = 0; r < n; ++r) {
+            const size_t k = size_t(r);
+            sendCounts[k] = int(std::max(0LL, std::min(kStep, sending[k] - done)));
+            receiveCounts[k] = int(std::max(0LL, std::min(kStep, receiving[k] - done)));
+            sendOffsets[k] = int(sent), receiveOffsets[k] = int(received);
+            sent += sendCounts[k], received += receiveCounts[k];
+        }
+        std::string out(size_t(sent), '\0'), in(size_t(received), '\0');
+        for (int r = 0; r < n; ++r)
+            std::memcpy(out.data() + sendOffsets[size_t(r)], toEach[size_t(r)].data() + std::min(done, sending[size_t(r)]),
+                        size_t(sendCounts[size_t(r)]));
+        check(MPI_Alltoallv(out.data(), sendCounts.data(), sendOffsets.data(), MPI_BYTE, in.data(),
+                            receiveCounts.data(), receiveOffsets.data(), MPI_BYTE, MPI_COMM_WORLD),
+              "exchanging rows (MPI_Alltoallv)");
+        g_sent += uint64_t(sent - sendCounts[size_t(g_rank)]);
+        for (int r = 0; r < n; ++r)
+            std::memcpy(from[size_t(r)].data() + done, in.data() + receiveOffsets[size_t(r)],
+                        size_t(receiveCounts[size_t(r)]));
+    }
+    return from;
 }
 
 void barrier() {

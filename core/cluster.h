@@ -114,8 +114,11 @@ void shareCounters(const std::map<std::string, uint64_t>& before);
 
 // Every rank's bytes, in rank order, on every rank.
 std::vector<std::string> allGather(const std::string& mine);
-// Rank 0's bytes on every rank.
-std::string broadcast(const std::string& fromLeader);
+// Rank `root`'s bytes on every rank (the others' `bytes` are not read).
+std::string broadcast(const std::string& bytes, int root = 0);
+// toEach[r] to rank r, from every rank: returns what each rank sent this one, in rank order
+// (MPI_Alltoallv). Alone: {toEach[0]}.
+std::vector<std::string> exchange(const std::vector<std::string>& toEach);
 // Waits for every rank.
 void barrier();
 // Bytes sent by this rank so far (what the exchanges above handed to MPI).

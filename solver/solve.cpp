@@ -7,6 +7,7 @@
 #include <numeric>
 #include <sstream>
 
+#include "core/cluster.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "core/timer.h"
@@ -376,7 +377,26 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
     const size_t n = r.patches.size();
     const double budget = options.maxMemoryBytes > 0 ? options.maxMemoryBytes : availableMemoryBytes();
     const double need = matrixBytes(options, n) + 400.0 * double(n);
-    if (budget > 0 && need > budget) {
+    SolveOptions blocked = options;  // row blocks: the form factors' settings say whose rows
+    const int ranks = cluster::size();
+    const double eachRank = matrixBytes(options, n) / ranks + 400.0 * double(n);
+    if (budget > 0 && need > budget && !castsFormFactors(options) && ranks > 1 && eachRank <= budget) {
+        // Too large for one host, not for the ranks together: each holds a block of rows.
+        const auto refuse = [&](const std::string& why) {
+            throw Error(cat("the form-factor matrix of ", n, " patches needs ", need / (1 << 20),
+                            " MiB, more than the ", budget / (1 << 20),
+                            " MiB allowed (--max-memory); in row blocks over the ", ranks, " ranks it would fit (",
+                            eachRank / (1 << 20), " MiB each), but ", why));
+        };
+        if (scene.hasSpecular()) refuse("the transport through mirrors and glass needs every row on every rank");
+        if (options.refine.tolerance > 0) refuse("--refine reads every row on every rank");
+        if (options.solver != "gauss-seidel" && options.solver != "jacobi")
+            refuse(cat("--solver ", options.solver, " needs every row on every rank (gauss-seidel and jacobi do not)"));
+        blocked.formFactors.rowBlocks = rowBlocksFor(n, ranks);
+        logInfo("form-factor matrix: ", n, " x ", n, " floats, ", matrixBytes(options, n) / (1 << 20),
+                " MiB, more than the ", budget / (1 << 20), " MiB allowed on one rank: held in row blocks, ",
+                matrixBytes(options, n) / ranks / (1 << 20), " MiB on each of the ", ranks, " ranks");
+    } else if (budget > 0 && need > budget) {
         const size_t fit =
             castsFormFactors(options) ? size_t(double(n) * budget / need) : size_t(std::sqrt(budget / sizeof(float)));
         throw Error(cat("the form-factor matrix of ", n, " patches needs ", need / (1 << 20), " MiB, more than the ",
@@ -385,7 +405,7 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
     }
     if (castsFormFactors(options))
         logInfo("form-factor matrix: ", n, " sparse rows, at most ", matrixBytes(options, n) / (1 << 20), " MiB");
-    else
+    else if (blocked.formFactors.rowBlocks.empty())
         logInfo("form-factor matrix: ", n, " x ", n, " floats, ", matrixBytes(options, n) / (1 << 20), " MiB");
 
     Timer ffTimer;
@@ -406,7 +426,7 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
         }
         if (covered) logInfo("form factors (rays): ", covered, " patches partly covered by a solid resting on them");
     } else {
-        r.F = computeFormFactors(r.patches, *r.rays, options.formFactors);
+        r.F = computeFormFactors(r.patches, *r.rays, blocked.formFactors);
     }
     std::vector<double> rows = rowSums(r.F);
     r.rowSumMin = n ? *std::min_element(rows.begin(), rows.end()) : 0;

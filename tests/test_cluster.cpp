@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fixtures.h"
+#include "io/solution.h"
 
 namespace fs = std::filesystem;
 using namespace penumbra;
@@ -129,6 +130,64 @@ TEST(Cluster, SolveUnderMpirunWritesTheOneProcessSolution) {
                 << method << " " << name;
         }
     }
+}
+
+// A dense matrix larger than one rank may hold (--max-memory) but not than the ranks together is held
+// in row blocks, 1/N per rank: the pairs' values go to the ranks holding their rows, the closed
+// scene's balance, the Gauss-Seidel sweeps (a chain in rank order) and the power balance run on each
+// rank's rows. The solve is one process's with the whole matrix, bit for bit; corners gathered at the
+// vertices add each rank's rows' sums in rank order, so within 1e-12 (docs/distributed.md).
+TEST(Cluster, AMatrixTooLargeForOneRankIsHeldInRowBlocks) {
+    const std::string out = test::tempDir() + "/cluster-rows";
+    fs::remove_all(out);
+    // The white furnace is closed (its rows balanced); 300 patches: a 0.4-0.5 MiB matrix and 0.12 MiB
+    // for the rest, against 0.4 GiB / 1024 allowed a rank.
+    const std::string args =
+        sceneFile("white-furnace.json") + " --patches 300 --form-factors analytic --solver gauss-seidel";
+    const std::string budget = " --max-memory 0.0004";
+    ASSERT_EQ(run(cat("solve ", args, " --quiet --out ", out, "/one")).status, 0);
+    const CommandResult alone = run(cat("solve ", args, budget, " --quiet --out ", out, "/alone"));
+    EXPECT_NE(alone.status, 0);
+    EXPECT_NE(alone.output.find("--max-memory"), std::string::npos) << alone.output;
+    const std::string whole = bytesOf(out + "/one/solution.bin");
+    ASSERT_FALSE(whole.empty());
+    for (int ranks : {2, 3}) {
+        const std::string dir = cat(out, "/ranks-", ranks);
+        // With 3 ranks the exchanges go in steps of 4,096 bytes (as past 1 GiB).
+        const CommandResult many = runRanks(ranks, cat("solve ", args, budget, " --out ", dir),
+                                            ranks == 3 ? "PENUMBRA_TEST_EXCHANGE_BYTES=4096" : "");
+        ASSERT_EQ(many.status, 0) << many.output;
+        EXPECT_NE(many.output.find("held in row blocks"), std::string::npos) << many.output;
+        EXPECT_TRUE(bytesOf(dir + "/solution.bin") == whole) << ranks << " ranks";
+        // Rank 0 held its block alone.
+        const auto mib = [](const std::string& d) {
+            return nlohmann::json::parse(bytesOf(d + "/report.json"))["solver"]["matrix_mib"].get<double>();
+        };
+        EXPECT_NEAR(mib(dir), mib(out + "/one") / ranks, 0.02 * mib(out + "/one"));
+    }
+    // The equation at each vertex over every patch it sees: the same light within rounding.
+    const std::string gather = " --vertex-radiosity gather --quiet";
+    ASSERT_EQ(run(cat("solve ", args, gather, " --out ", out, "/one-gather")).status, 0);
+    const CommandResult two = runRanks(2, cat("solve ", args, gather, budget, " --out ", out, "/two-gather"));
+    ASSERT_EQ(two.status, 0) << two.output;
+    const SolveResult a = readSolution(out + "/one-gather/solution.bin"),
+                      b = readSolution(out + "/two-gather/solution.bin");
+    ASSERT_EQ(a.corners.size(), b.corners.size());
+    ASSERT_EQ(a.solution.B.size(), b.solution.B.size());
+    for (size_t i = 0; i < a.solution.B.size(); ++i) ASSERT_TRUE((a.solution.B[i] == b.solution.B[i]).all()) << i;
+    double worst = 0;
+    for (size_t i = 0; i < a.corners.size(); ++i)
+        for (size_t k = 0; k < 4; ++k)
+            worst = std::max(worst, ((a.corners[i][k] - b.corners[i][k]).abs() /
+                                     a.corners[i][k].abs().max(1e-300)).maxCoeff());
+    EXPECT_LT(worst, 1e-12);
+    // What needs every row on every rank is refused by name, before any work.
+    const CommandResult glass = runRanks(
+        2, cat("solve ", sceneFile("cornell-glass.json"), " --patches 200 --form-factors analytic --solver "
+               "gauss-seidel --quiet --max-memory 0.0003 --out ", out, "/glass"));
+    EXPECT_NE(glass.status, 0);
+    EXPECT_NE(glass.output.find("mirrors and glass"), std::string::npos) << glass.output;
+    EXPECT_FALSE(fs::exists(out + "/glass/solution.bin"));
 }
 
 // A rank that dies (SIGKILL, as a crash or a lost host would end it: PENUMBRA_TEST_KILL_RANK) stops

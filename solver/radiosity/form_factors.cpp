@@ -279,6 +279,63 @@ void unpackBlocks(FormFactorMatrix& F, const std::vector<size_t>& start, const s
     PENUMBRA_CHECK(from.done());
 }
 
+// Row blocks (FormFactorMatrix::inRowBlocks): a block of rows' pairs as computed, row i's F(i, j > i)
+// then F(j > i, i), for each row of the block in order.
+struct ComputedBlock {
+    int64_t block;
+    std::vector<float> pairs;
+};
+
+// The values of `computed` sent to the ranks that hold them: row i's part to row i's rank, the column
+// part F(j > i, i) split among the ranks holding the rows j. Each message: row, 0 (row) or 1
+// (column), first column (row) or row (column), values.
+std::vector<std::string> routeBlocks(const FormFactorMatrix& F, const std::vector<size_t>& start,
+                                     const std::vector<ComputedBlock>& computed) {
+    const size_t n = F.size();
+    const std::vector<size_t>& owners = F.rowBlocks();
+    std::vector<cluster::Packer> to(owners.size() - 1);
+    std::vector<float> part;
+    for (const ComputedBlock& c : computed) {
+        const float* at = c.pairs.data();
+        for (size_t i = start[size_t(c.block)]; i < start[size_t(c.block) + 1]; ++i) {
+            const size_t count = n - 1 - i;
+            cluster::Packer& rowRank = to[size_t(F.rowOwner(i))];
+            rowRank.put(int64_t(i)), rowRank.put(int64_t(0)), rowRank.put(int64_t(i + 1));
+            rowRank.put(std::vector<float>(at, at + count));
+            at += count;
+            for (size_t r = 0; r + 1 < owners.size(); ++r) {
+                const size_t b = std::max(owners[r], i + 1), e = owners[r + 1];
+                if (b >= e) continue;
+                to[r].put(int64_t(i)), to[r].put(int64_t(1)), to[r].put(int64_t(b));
+                to[r].put(std::vector<float>(at + (b - i - 1), at + (e - i - 1)));
+            }
+            at += count;
+        }
+    }
+    std::vector<std::string> bytes;
+    for (cluster::Packer& p : to) bytes.push_back(std::move(p.bytes));
+    return bytes;
+}
+
+// What routeBlocks sent this rank, into its rows.
+void receiveBlocks(FormFactorMatrix& F, const std::vector<std::string>& from) {
+    std::vector<float> values;
+    for (const std::string& bytes : from) {
+        cluster::Unpacker in(bytes);
+        while (!in.done()) {
+            int64_t i = 0, kind = 0, first = 0;
+            in.get(i), in.get(kind), in.get(first);
+            in.get(values);
+            for (size_t t = 0; t < values.size(); ++t) {
+                const size_t row = kind == 0 ? size_t(i) : size_t(first) + t;
+                const size_t column = kind == 0 ? size_t(first) + t : size_t(i);
+                PENUMBRA_CHECK(row >= F.firstRow() && row < F.endRow() && column < F.size());
+                F(row, column) = values[t];
+            }
+        }
+    }
+}
+
 // A round of blocks takes about this long (by the last round's pace): the ranks exchange their rows
 // after each, and the checkpoint takes them when due (at least every 20 s).
 constexpr double kRoundSeconds = 5;
@@ -289,14 +346,16 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
                                     const FormFactorSettings& settings) {
     Timer timer;
     const size_t n = patches.size();
-    FormFactorMatrix F(n);
+    const bool blocked = !settings.rowBlocks.empty();
+    FormFactorMatrix F = blocked ? FormFactorMatrix(n, settings.rowBlocks, cluster::rank()) : FormFactorMatrix(n);
     std::mutex backMutex;
     const CounterValues before = counterValues();
     const std::vector<size_t> start = pairBlocks(n);
     const int64_t blocks = int64_t(start.size()) - 1;
     std::vector<char> done(size_t(blocks), 0);
     // A killed solve's blocks, from its checkpoint (io/checkpoint.h).
-    CastCheckpoint* checkpoint = settings.checkpoint;
+    // (Row blocks: no rank holds the whole matrix to save; a resume computes them again.)
+    CastCheckpoint* checkpoint = blocked ? nullptr : settings.checkpoint;
     const int pass = checkpoint ? checkpoint->beginPass() : 0;
     if (checkpoint && !checkpoint->savedRows(pass).empty()) {
         unpackBlocks(F, start, checkpoint->savedRows(pass), done);
@@ -309,6 +368,7 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
     Progress progress("form factors", blocks);
     progress.update(blocks - int64_t(left.size()));
     std::vector<BackTransfer> roundBack;
+    std::vector<ComputedBlock> roundBlocks;  // row blocks: this rank's blocks of the round
     // Blocks from a work queue, round by round: under mpirun each rank takes them as its threads come
     // free, and after each round the ranks exchange their rows.
     // Tests: PENUMBRA_TEST_CHECKPOINT_ROWS=k makes every round k blocks (and saves after each).
@@ -319,13 +379,30 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
         const size_t take = std::min<size_t>(round, left.size() - at);
         const Timer roundTimer;
         roundBack.clear();
+        roundBlocks.clear();
         std::vector<int64_t> mine = cluster::forEachQueued(
             int64_t(take),
             [&](int64_t item) {
                 const int64_t block = left[at + size_t(item)];
                 uint64_t myPairs = 0, myEvaluations = 0, myRays = 0, myPartial = 0, myOccluded = 0;
                 std::vector<BackTransfer> myBack;
-                for (size_t i = start[size_t(block)]; i < start[size_t(block) + 1]; ++i) {
+                // Row blocks: the block's pairs as ComputedBlock holds them, row i's from `base`.
+                ComputedBlock computed{block, {}};
+                size_t base = 0;
+                if (blocked) {
+                    size_t count = 0;
+                    for (size_t i = start[size_t(block)]; i < start[size_t(block) + 1]; ++i) count += 2 * (n - 1 - i);
+                    computed.pairs.assign(count, 0.0f);
+                }
+                const auto put = [&](size_t i, size_t j, float ij, float ji) {
+                    if (!blocked) {
+                        F(i, j) = ij, F(j, i) = ji;
+                        return;
+                    }
+                    computed.pairs[base + (j - i - 1)] = ij;
+                    computed.pairs[base + (n - 1 - i) + (j - i - 1)] = ji;
+                };
+                for (size_t i = start[size_t(block)]; i < start[size_t(block) + 1]; base += 2 * (n - 1 - i), ++i) {
                     for (size_t j = i + 1; j < n; ++j) {
                         const PlaneSides jSeenByI = planeSides(patches, i, j), iSeenByJ = planeSides(patches, j, i);
                         const bool jFrontOfI = jSeenByI.front, iFrontOfJ = iSeenByJ.front;
@@ -349,8 +426,8 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
                             const bool iSmaller = patches.area[i] <= patches.area[j];
                             const AreaFactors g =
                                 unoccludedAreaFactors(patches, iSmaller ? i : j, iSmaller ? j : i, cub, &myEvaluations);
-                            F(i, j) = float(vis.fraction * g.front / patches.area[i]);
-                            F(j, i) = float(vis.fraction * g.front / patches.area[j]);
+                            put(i, j, float(vis.fraction * g.front / patches.area[i]),
+                                float(vis.fraction * g.front / patches.area[j]));
                             // Where one patch straddles the other's plane, part of it sees the other's back:
                             // tested by rays of its own (a block's side is mostly seen from behind through
                             // the block itself), and integrated only when some of them get through.
@@ -386,10 +463,24 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
                 g_occludedPairs.add(myOccluded);
                 std::lock_guard<std::mutex> lock(backMutex);
                 roundBack.insert(roundBack.end(), myBack.begin(), myBack.end());
+                if (blocked) roundBlocks.push_back(std::move(computed));
             },
             [&](int64_t finished) { progress.update(finished); }, prepareTracingThread);
         for (int64_t& item : mine) item = left[at + size_t(item)];
-        if (cluster::distributed()) {
+        if (blocked) {
+            // Each value to the rank that holds its row; every rank keeps every back transfer.
+            receiveBlocks(F, cluster::exchange(routeBlocks(F, start, roundBlocks)));
+            cluster::Packer back;
+            back.put(roundBack);
+            const std::vector<std::string> all = cluster::allGather(back.bytes);
+            for (int r = 0; r < cluster::size(); ++r)
+                if (r != cluster::rank()) {
+                    cluster::Unpacker from(all[size_t(r)]);
+                    std::vector<BackTransfer> theirs;
+                    from.get(theirs);
+                    F.backTransfers.insert(F.backTransfers.end(), theirs.begin(), theirs.end());
+                }
+        } else if (cluster::distributed()) {
             const std::vector<std::string> all = cluster::allGather(packBlocks(F, start, mine, roundBack));
             for (int r = 0; r < cluster::size(); ++r)
                 if (r != cluster::rank()) unpackBlocks(F, start, all[size_t(r)], done);
@@ -551,7 +642,7 @@ double frontFormFactor(const PatchSet& patches, const RayScene& rays, size_t i, 
 
 FormFactorMatrix::FormFactorMatrix(size_t n, std::vector<uint64_t> rowStart, std::vector<int32_t> column,
                                    std::vector<float> value)
-    : n_(n), rowStart_(std::move(rowStart)), column_(std::move(column)), value_(std::move(value)) {
+    : n_(n), endRow_(n), rowStart_(std::move(rowStart)), column_(std::move(column)), value_(std::move(value)) {
     if (rowStart_.size() != n + 1 || column_.size() != value_.size() || rowStart_.back() != value_.size())
         throw Error("FormFactorMatrix: inconsistent sparse rows");
     if (n == 0) rowStart_.clear();
@@ -565,22 +656,35 @@ void FormFactorMatrix::setMeanRows(std::vector<uint64_t> start, std::vector<int3
     meanValue_ = std::move(value);
 }
 
+FormFactorMatrix::FormFactorMatrix(size_t n, std::vector<size_t> blockStart, int rank)
+    : n_(n), blockStart_(std::move(blockStart)) {
+    PENUMBRA_CHECK(rank >= 0 && size_t(rank) + 1 < blockStart_.size() && blockStart_.back() == n);
+    firstRow_ = blockStart_[size_t(rank)], endRow_ = blockStart_[size_t(rank) + 1];
+    values_ = Dense::Zero(Eigen::Index(endRow_ - firstRow_), Eigen::Index(n));
+}
+
+int FormFactorMatrix::rowOwner(size_t i) const {
+    if (blockStart_.empty()) return 0;
+    return int(std::upper_bound(blockStart_.begin(), blockStart_.end(), i) - blockStart_.begin()) - 1;
+}
+
 uint64_t FormFactorMatrix::bytes() const {
     const uint64_t mean = uint64_t(meanValue_.size()) * (sizeof(float) + sizeof(int32_t)) +
                           meanStart_.size() * sizeof(uint64_t) + seen.size() * sizeof(float);
     return mean + (isSparse() ? uint64_t(value_.size()) * (sizeof(float) + sizeof(int32_t)) +
                                     rowStart_.size() * sizeof(uint64_t)
-                              : formFactorMatrixBytes(n_));
+                              : uint64_t(endRow_ - firstRow_) * n_ * sizeof(float));
 }
 
 float FormFactorMatrix::operator()(size_t i, size_t j) const {
-    if (!isSparse()) return values_(Eigen::Index(i), Eigen::Index(j));
+    if (!isSparse()) return values_(Eigen::Index(i - firstRow_), Eigen::Index(j));
     const SparseRow r = sparseRow(i);
     const int32_t* at = std::lower_bound(r.column, r.column + r.count, int32_t(j));
     return at != r.column + r.count && *at == int32_t(j) ? r.value[at - r.column] : 0.0f;
 }
 
 FormFactorMatrix FormFactorMatrix::transposed() const {
+    PENUMBRA_CHECK(!inRowBlocks());
     std::vector<uint64_t> start(n_ + 1, 0);
     for (size_t i = 0; i < n_; ++i) forEachInRow(i, [&](size_t j, float) { ++start[j + 1]; });
     for (size_t j = 0; j < n_; ++j) start[j + 1] += start[j];
@@ -598,15 +702,23 @@ FormFactorMatrix FormFactorMatrix::transposed() const {
     return t;
 }
 
+std::vector<size_t> rowBlocksFor(size_t n, int ranks) {
+    std::vector<size_t> start;
+    for (int r = 0; r <= ranks; ++r) start.push_back(size_t(double(n) * r / ranks));
+    start.back() = n;
+    return start;
+}
+
 double balanceClosedScene(FormFactorMatrix& F, const std::vector<double>& area) {
     const size_t n = F.size();
+    const int64_t first = int64_t(F.firstRow()), end = int64_t(F.endRow());
     if (F.isSparse() || !F.reciprocal) throw Error("balanceClosedScene: needs the dense, reciprocal matrix");
     std::vector<double> back(n, 0.0), d(n, 1.0), share(n);
     for (const BackTransfer& t : F.backTransfers) back[size_t(t.from)] += t.areaFactor / area[size_t(t.from)];
-    // Every row's landing share under the scaling d.
+    // Every row's landing share under the scaling d (each rank its rows, then shared).
     auto shares = [&] {
-        parallelFor(int64_t(n), [&](int64_t b, int64_t e) {
-            for (int64_t ii = b; ii < e; ++ii) {
+        parallelFor(end - first, [&](int64_t b, int64_t e) {
+            for (int64_t ii = first + b; ii < first + e; ++ii) {
                 const size_t i = size_t(ii);
                 const float* row = F.row(i);
                 double s = 0;
@@ -614,6 +726,7 @@ double balanceClosedScene(FormFactorMatrix& F, const std::vector<double>& area) 
                 share[i] = d[i] * (s + back[i]);
             }
         });
+        shareRowValues(F, share);
         double worst = 0;
         for (size_t i = 0; i < n; ++i) worst = std::max(worst, std::abs(share[i] - 1));
         return worst;
@@ -623,7 +736,7 @@ double balanceClosedScene(FormFactorMatrix& F, const std::vector<double>& area) 
     for (int sweep = 0; sweep < 200 && shares() > 1e-10; ++sweep)
         for (size_t i = 0; i < n; ++i)
             if (share[i] > 0) d[i] /= std::sqrt(share[i]);
-    for (size_t i = 0; i < n; ++i)
+    for (size_t i = F.firstRow(); i < F.endRow(); ++i)
         for (size_t j = 0; j < n; ++j)
             if (const float f = F(i, j); f != 0) F(i, j) = float(d[i] * f * d[j]);
     for (BackTransfer& t : F.backTransfers) t.areaFactor *= d[size_t(t.from)];
@@ -652,11 +765,12 @@ std::string chooseFormFactors(const PatchSet& p, std::string& why) {
 
 std::vector<double> rowSums(const FormFactorMatrix& F) {
     std::vector<double> sums(F.size(), 0.0);
-    for (size_t i = 0; i < F.size(); ++i) {
+    for (size_t i = F.firstRow(); i < F.endRow(); ++i) {
         double s = 0;
         F.forEachInRow(i, [&](size_t, float f) { s += f; });
         sums[i] = s;
     }
+    shareRowValues(F, sums);
     return sums;
 }
 

@@ -8,9 +8,12 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <vector>
 
+#include "core/cluster.h"
+#include "core/error.h"
 #include "core/rng.h"
 #include "mesh/patches.h"
 #include "solver/radiosity/form_factor_kernel.h"
@@ -45,6 +48,9 @@ struct FormFactorSettings {
     bool clearShafts = true;
     uint64_t seed = 1;
     CastCheckpoint* checkpoint = nullptr;  // rows kept for a resume (none: not kept)
+    // Analytic: empty, the whole matrix on every rank; else rank r holds rows [rowBlocks[r],
+    // rowBlocks[r + 1]) alone (a matrix too large for one host: rowBlocksFor).
+    std::vector<size_t> rowBlocks;
 };
 
 struct BackTransfer {
@@ -65,21 +71,34 @@ public:
 
     FormFactorMatrix() = default;
     // Dense and zero: the analytic matrix, every pair a number.
-    explicit FormFactorMatrix(size_t n) : n_(n), values_(Dense::Zero(Eigen::Index(n), Eigen::Index(n))) {}
+    explicit FormFactorMatrix(size_t n)
+        : n_(n), endRow_(n), values_(Dense::Zero(Eigen::Index(n), Eigen::Index(n))) {}
+    // Dense and zero, in row blocks: rank r holds rows [blockStart[r], blockStart[r + 1]) of n
+    // columns, and this one is rank `rank`'s (a matrix too large for one host, under mpirun).
+    FormFactorMatrix(size_t n, std::vector<size_t> blockStart, int rank);
     // Sparse rows (compressed, row i's entries at rowStart[i] .. rowStart[i + 1], columns ascending):
     // the ray-cast matrix, whose row holds no more entries than the rays its patch cast.
     FormFactorMatrix(size_t n, std::vector<uint64_t> rowStart, std::vector<int32_t> column, std::vector<float> value);
 
     size_t size() const { return n_; }
     bool isSparse() const { return !rowStart_.empty(); }
-    // Entries stored: n^2 dense, the nonzeros sparse.
-    uint64_t entries() const { return isSparse() ? uint64_t(value_.size()) : uint64_t(n_) * n_; }
+    // Row blocks: this rank holds rows [firstRow(), endRow()) alone; the others are other ranks'.
+    bool inRowBlocks() const { return !blockStart_.empty(); }
+    size_t firstRow() const { return firstRow_; }
+    size_t endRow() const { return endRow_; }
+    const std::vector<size_t>& rowBlocks() const { return blockStart_; }
+    // The rank holding row i (0 without row blocks).
+    int rowOwner(size_t i) const;
+    // Entries stored: n^2 dense (the rows held in row blocks), the nonzeros sparse.
+    uint64_t entries() const {
+        return isSparse() ? uint64_t(value_.size()) : uint64_t(endRow_ - firstRow_) * n_;
+    }
     uint64_t bytes() const;
     float operator()(size_t i, size_t j) const;
     // Dense matrices only.
-    float& operator()(size_t i, size_t j) { return values_(Eigen::Index(i), Eigen::Index(j)); }
-    // Row i as contiguous floats (dense matrices only): the solvers' sweeps walk rows.
-    const float* row(size_t i) const { return values_.data() + i * n_; }
+    float& operator()(size_t i, size_t j) { return values_(Eigen::Index(i - firstRow_), Eigen::Index(j)); }
+    // Row i as contiguous floats (dense matrices only, a row held): the solvers' sweeps walk rows.
+    const float* row(size_t i) const { return values_.data() + (i - firstRow_) * n_; }
     SparseRow sparseRow(size_t i) const {
         return {column_.data() + rowStart_[i], value_.data() + rowStart_[i], size_t(rowStart_[i + 1] - rowStart_[i])};
     }
@@ -104,7 +123,7 @@ public:
                 for (uint64_t k = meanStart_[i]; k < meanStart_[i + 1]; ++k)
                     meanValue_[k] *= float(meanFactor(size_t(meanColumn_[k])));
         } else {
-            float* r = values_.data() + i * n_;
+            float* r = values_.data() + (i - firstRow_) * n_;
             for (size_t j = 0; j < n_; ++j) r[j] *= float(factor(j));
         }
     }
@@ -147,6 +166,8 @@ public:
 
 private:
     size_t n_ = 0;
+    size_t firstRow_ = 0, endRow_ = 0;
+    std::vector<size_t> blockStart_;  // row blocks: each rank's first row, and n
     Dense values_;
     std::vector<uint64_t> rowStart_;
     std::vector<int32_t> column_;
@@ -155,6 +176,25 @@ private:
     std::vector<int32_t> meanColumn_;
     std::vector<float> meanValue_;
 };
+
+// Per-row values, each rank having computed those of the rows it holds (F.firstRow() to F.endRow()):
+// afterwards every rank holds every row's, as one process computes them. Without row blocks, nothing
+// to do.
+template <typename T>
+void shareRowValues(const FormFactorMatrix& F, std::vector<T>& values) {
+    static_assert(cluster::kPlainData<T>);
+    if (!F.inRowBlocks() || !cluster::distributed()) return;
+    const std::vector<size_t>& start = F.rowBlocks();
+    const std::vector<std::string> all = cluster::allGather(std::string(
+        reinterpret_cast<const char*>(values.data() + F.firstRow()), (F.endRow() - F.firstRow()) * sizeof(T)));
+    for (size_t r = 0; r < all.size(); ++r) {
+        PENUMBRA_CHECK(all[r].size() == (start[r + 1] - start[r]) * sizeof(T));
+        std::memcpy(static_cast<void*>(values.data() + start[r]), all[r].data(), all[r].size());
+    }
+}
+
+// Row blocks for n rows on `ranks` ranks: equal rows (a dense row is n floats whoever holds it).
+std::vector<size_t> rowBlocksFor(size_t n, int ranks);
 
 // Bytes the dense matrix of n patches needs.
 inline uint64_t formFactorMatrixBytes(uint64_t n) { return n * n * sizeof(float); }

@@ -1,5 +1,7 @@
 #include "solver/radiosity/system.h"
 
+#include "core/cluster.h"
+#include "core/error.h"
 #include "core/parallel.h"
 
 namespace penumbra {
@@ -82,16 +84,18 @@ std::vector<Rgb> gatherIrradiance(const RadiositySystem& s, const FormFactorMatr
     const size_t n = F.size();
     const ChannelPlanes planes(B);
     std::vector<Rgb> H(n);
+    const int64_t first = int64_t(F.firstRow());  // in row blocks, this rank's rows; then shared
     parallelFor(
-        int64_t(n),
+        int64_t(F.endRow()) - first,
         [&](int64_t begin, int64_t end) {
-            for (int64_t ii = begin; ii < end; ++ii) {
+            for (int64_t ii = first + begin; ii < first + end; ++ii) {
                 const size_t i = size_t(ii);
                 H[i] = mean && F.hasMeanRow(i) ? sparseIrradiance(F.meanRow(i), planes) + s.transport.incoming(i, B)
                                                : irradianceAt(s, F, i, B, planes);
             }
         },
         16);
+    shareRowValues(F, H);
     return H;
 }
 
@@ -107,12 +111,37 @@ std::vector<Rgb> meanRadiosity(const RadiositySystem& s, const FormFactorMatrix&
 double gaussSeidelPass(const RadiositySystem& s, const FormFactorMatrix& F, std::vector<Rgb>& B) {
     ChannelPlanes planes(B);
     double change = 0, emitted = 0;
-    for (size_t i = 0; i < s.size(); ++i) {
-        const Rgb next = s.emission[i] + s.reflectance[i] * irradianceAt(s, F, i, B, planes);
-        change += s.area[i] * (next - B[i]).abs().sum();
-        emitted += s.area[i] * s.emission[i].sum();
-        B[i] = next;
-        planes.set(i, B[i]);
+    const auto sweep = [&](size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) {
+            const Rgb next = s.emission[i] + s.reflectance[i] * irradianceAt(s, F, i, B, planes);
+            change += s.area[i] * (next - B[i]).abs().sum();
+            emitted += s.area[i] * s.emission[i].sum();
+            B[i] = next;
+            planes.set(i, B[i]);
+        }
+    };
+    if (!F.inRowBlocks() || !cluster::distributed()) {
+        sweep(0, s.size());
+    } else {
+        // Row blocks: a chain in rank order. Each rank sweeps its rows with the newest values of the
+        // rows before them and passes them on with the running sums: the same operations in the same
+        // order as one process, so the same bits (and no speed-up: the point is the memory).
+        const std::vector<size_t>& start = F.rowBlocks();
+        for (int r = 0; r + 1 < int(start.size()); ++r) {
+            const size_t begin = start[size_t(r)], end = start[size_t(r) + 1];
+            cluster::Packer mine;
+            if (r == cluster::rank()) {
+                sweep(begin, end);
+                mine.put(change), mine.put(emitted);
+                mine.put(std::vector<Rgb>(B.begin() + int64_t(begin), B.begin() + int64_t(end)));
+            }
+            const std::string bytes = cluster::broadcast(mine.bytes, r);
+            cluster::Unpacker in(bytes);
+            std::vector<Rgb> theirs;
+            in.get(change), in.get(emitted), in.get(theirs);
+            PENUMBRA_CHECK(theirs.size() == end - begin);
+            for (size_t i = begin; i < end; ++i) B[i] = theirs[i - begin], planes.set(i, B[i]);
+        }
     }
     return emitted > 0 ? change / emitted : 0;
 }

@@ -1,7 +1,10 @@
 #include "solver/radiosity/vertex_radiosity.h"
 
+#include <cstring>
 #include <functional>
 
+#include "core/cluster.h"
+#include "core/error.h"
 #include "core/parallel.h"
 #include "core/progress.h"
 #include "mesh/refine.h"
@@ -178,7 +181,16 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
         AtVertex out;
         const int v = p.cornerVertex[i][size_t(k)];
         const Vec3 x = cornerPoint(p, i, k);
-        if (F.size() == p.size() && !F.sampled) {
+        if (F.inRowBlocks()) {
+            // Row blocks: this rank's rows alone, those that see a patch around the vertex (F(j, a)
+            // is not zero exactly when F(a, j) is not: the analytic pairs are set together); the
+            // ranks' sums are added below.
+            std::fill(sees.begin(), sees.end(), 0);
+            for (size_t j = F.firstRow(); j < F.endRow(); ++j)
+                for (int a : around[size_t(v)])
+                    if (p.normal[size_t(a)].dot(p.normal[i]) > 0.999 && F(j, size_t(a)) != 0) sees[j] = 1;
+            out.diffuse = irradianceAtPoint(p, B, rays, x, p.normal[i], [&](size_t j) { return sees[j] != 0; });
+        } else if (F.size() == p.size() && !F.sampled) {
             std::fill(sees.begin(), sees.end(), 0);
             for (int a : around[size_t(v)])
                 if (p.normal[size_t(a)].dot(p.normal[i]) > 0.999) {
@@ -220,6 +232,19 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
             }
         },
         16);
+    if (F.inRowBlocks() && cluster::distributed()) {
+        // Each rank gathered from its rows: the sums added in rank order (so within rounding of one
+        // process's, which adds the patches in one sum: 1e-16 relative).
+        const std::vector<std::string> all = cluster::allGather(
+            std::string(reinterpret_cast<const char*>(own.data()), own.size() * sizeof(own[0])));
+        for (size_t r = 0; r < all.size(); ++r) {
+            PENUMBRA_CHECK(all[r].size() == own.size() * sizeof(own[0]));
+            CornerValues theirs(n);
+            std::memcpy(static_cast<void*>(theirs.data()), all[r].data(), all[r].size());
+            for (size_t i = 0; i < n; ++i)
+                for (size_t k = 0; k < 4; ++k) own[i][k] = r == 0 ? theirs[i][k] : Rgb(own[i][k] + theirs[i][k]);
+        }
+    }
     return radiosityAtVertices(p, s, around, own, creaseDeg);
 }
 
@@ -237,11 +262,12 @@ CornerValues directCorners(const PatchSet& p, const RadiositySystem& s, const Fo
         return directIrradiance(p, B, rays, cornerPoint(p, i, k), p.normal[i], sources);
     });
     CornerValues own(n);
+    const int64_t first = int64_t(F.firstRow());  // in row blocks, this rank's rows; then shared
     parallelFor(
-        int64_t(n),
+        int64_t(F.endRow()) - first,
         [&](int64_t begin, int64_t end) {
             prepareTracingThread();
-            for (int64_t ii = begin; ii < end; ++ii) {
+            for (int64_t ii = first + begin; ii < first + end; ++ii) {
                 const size_t i = size_t(ii);
                 for (int k = 0; k < 4; ++k) own[i][size_t(k)] = Rgb::Zero();
                 if (s.specular[i]) continue;
@@ -257,6 +283,7 @@ CornerValues directCorners(const PatchSet& p, const RadiositySystem& s, const Fo
             }
         },
         16);
+    shareRowValues(F, own);
     return radiosityAtVertices(p, s, around, own, creaseDeg);
 }
 
