@@ -495,6 +495,9 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
         sent = cluster::broadcast(sent);
         std::memcpy(&next, sent.data(), sizeof next);
         round = fixed ? fixedRound : next;
+        // Row blocks: a round's values are held (and copied for the exchange) until it ends; at most a
+        // sixteenth of the blocks keeps them under a quarter of what each rank holds.
+        if (blocked) round = std::min<uint64_t>(round, std::max<int64_t>(1, blocks / 16));
         if (checkpoint && cluster::leader() && at < left.size() && checkpoint->due()) {
             std::vector<int64_t> finished;
             for (int64_t k = 0; k < blocks; ++k)
