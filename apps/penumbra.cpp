@@ -266,6 +266,12 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
             bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
         }
         bytes = cluster::broadcast(bytes);
+        // A matrix in row blocks: every other rank's rows in a file of its own.
+        if (!cluster::leader()) {
+            std::ifstream own(checkpoint.ownPath(), std::ios::binary);
+            const std::string mine{std::istreambuf_iterator<char>(own), std::istreambuf_iterator<char>()};
+            if (!mine.empty()) checkpoint.resumeOwn(mine);
+        }
         if (bytes.empty()) {
             logInfo("--resume: no checkpoint in ", s.out, ": solving from the start");
         } else {

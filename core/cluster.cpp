@@ -180,8 +180,8 @@ std::vector<std::string> exchange(const std::vector<std::string>& toEach) {
         }
         std::string out(size_t(sent), '\0'), in(size_t(received), '\0');
         for (int r = 0; r < n; ++r)
-            std::memcpy(out.data() + sendOffsets[size_t(r)], toEach[size_t(r)].data() + std::min(done, sending[size_t(r)]),
-                        size_t(sendCounts[size_t(r)]));
+            std::memcpy(out.data() + sendOffsets[size_t(r)],
+                        toEach[size_t(r)].data() + std::min(done, sending[size_t(r)]), size_t(sendCounts[size_t(r)]));
         check(MPI_Alltoallv(out.data(), sendCounts.data(), sendOffsets.data(), MPI_BYTE, in.data(),
                             receiveCounts.data(), receiveOffsets.data(), MPI_BYTE, MPI_COMM_WORLD),
               "exchanging rows (MPI_Alltoallv)");

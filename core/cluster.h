@@ -167,9 +167,14 @@ public:
     }
     template <typename T>
     void put(const std::vector<T>& v) {
+        put(v.data(), v.size());
+    }
+    // `count` items at `data`, as a vector of them (without making one).
+    template <typename T>
+    void put(const T* data, size_t count) {
         static_assert(kPlainData<T>);
-        put(uint64_t(v.size()));
-        bytes.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+        put(uint64_t(count));
+        bytes.append(reinterpret_cast<const char*>(data), count * sizeof(T));
     }
     std::string bytes;
 };
@@ -189,6 +194,17 @@ public:
         get(n);
         v.resize(n);
         take(v.data(), n * sizeof(T));
+    }
+    // A vector of exactly `count` items into `to`; false (nothing read) when it holds another count.
+    template <typename T>
+    bool get(T* to, size_t count) {
+        static_assert(kPlainData<T>);
+        const size_t at = at_;
+        uint64_t n = 0;
+        get(n);
+        if (n != count) return at_ = at, false;
+        take(to, n * sizeof(T));
+        return true;
     }
     bool done() const { return at_ == bytes_.size(); }
 

@@ -48,10 +48,10 @@ std::string checkpointIdentity(uint64_t sceneFingerprint, const SolveOptions& op
 SolveCheckpoint::SolveCheckpoint(std::string path, std::string identity)
     : path_(std::move(path)), identity_(std::move(identity)), lastSave_(now()), started_(lastSave_) {}
 
-void SolveCheckpoint::resume(const std::string& bytes) {
-    const auto damaged = [&] { return Error(cat(path_, ": the checkpoint is damaged; solve again without --resume")); };
+std::vector<std::string> SolveCheckpoint::parse(const std::string& bytes, const std::string& path) const {
+    const auto damaged = [&] { return Error(cat(path, ": the checkpoint is damaged; solve again without --resume")); };
     if (bytes.size() < 16 || std::memcmp(bytes.data(), kMagic, 8) != 0)
-        throw Error(cat(path_, ": not a checkpoint of this version of penumbra; solve again without --resume"));
+        throw Error(cat(path, ": not a checkpoint of this version of penumbra; solve again without --resume"));
     size_t at = 8;
     const auto take = [&](uint64_t& v) {
         if (at + sizeof v > bytes.size()) throw damaged();
@@ -79,24 +79,31 @@ void SolveCheckpoint::resume(const std::string& bytes) {
                 std::istringstream x(a.substr(a.find(':') + 1)), y(b.substr(b.find(':') + 1));
                 for (std::string p, q; x >> p && y >> q;)
                     if (p != q)
-                        throw Error(cat(path_, ": this checkpoint was made with other settings (", p, ", here ", q,
+                        throw Error(cat(path, ": this checkpoint was made with other settings (", p, ", here ", q,
                                         "); resume with the same options, or solve again without --resume"));
             }
             const std::string why = what == "scene"      ? "another scene (or another version of this scene file)"
                                     : what == "settings" ? "other settings"
                                     : what == "build"    ? "another build of penumbra"
                                                          : "another format";
-            throw Error(cat(path_, ": this checkpoint was made for ", why, " (there '", a, "', here '", b,
+            throw Error(cat(path, ": this checkpoint was made for ", why, " (there '", a, "', here '", b,
                             "'); solve again without --resume"));
         }
     }
     uint64_t passes = 0;
     take(passes);
     if (passes > 1000) throw damaged();
-    saved_.assign(size_t(passes), std::string());
-    for (std::string& rows : saved_) text(rows);
+    std::vector<std::string> out(static_cast<size_t>(passes));
+    for (std::string& rows : out) text(rows);
     if (at != bytes.size()) throw damaged();
+    return out;
 }
+
+void SolveCheckpoint::resume(const std::string& bytes) { saved_ = parse(bytes, path_); }
+
+std::string SolveCheckpoint::ownPath() const { return cat(path_, ".rank-", cluster::rank()); }
+
+void SolveCheckpoint::resumeOwn(const std::string& bytes) { own_ = parse(bytes, ownPath()); }
 
 int SolveCheckpoint::beginPass() { return next_++; }
 
@@ -109,14 +116,7 @@ bool SolveCheckpoint::due() const {
     return std::getenv("PENUMBRA_TEST_CHECKPOINT_ROWS") || now() - lastSave_ >= kSaveSeconds;
 }
 
-void SolveCheckpoint::save(int pass, std::string rows) {
-    if (pass < 0) return;
-    if (saved_.size() <= size_t(pass)) saved_.resize(size_t(pass) + 1);
-    saved_[size_t(pass)] = std::move(rows);
-    saved_.resize(size_t(pass) + 1);  // a later pass of an older run no longer follows
-    lastSave_ = now();
-    const bool test = std::getenv("PENUMBRA_TEST_CHECKPOINT_ROWS") != nullptr;
-    if (!cluster::leader() || (!test && lastSave_ - started_ < kFirstSaveSeconds)) return;
+std::string SolveCheckpoint::fileBytes(const std::vector<std::string>& passes) const {
     std::string bytes(kMagic, 8);
     const auto put = [&](const std::string& s) {
         const uint64_t length = s.size();
@@ -124,20 +124,65 @@ void SolveCheckpoint::save(int pass, std::string rows) {
         bytes += s;
     };
     put(identity_);
-    const uint64_t passes = saved_.size();
-    bytes.append(reinterpret_cast<const char*>(&passes), sizeof passes);
-    for (const std::string& s : saved_) put(s);
-    writeFileAtomic(path_, bytes);
-    // Tests: PENUMBRA_TEST_KILL_AT_SAVE=m kills the run by SIGKILL right after its m-th save.
-    ++saves_;
-    if (const char* kill = std::getenv("PENUMBRA_TEST_KILL_AT_SAVE"); kill && std::atoi(kill) == saves_)
+    const uint64_t count = passes.size();
+    bytes.append(reinterpret_cast<const char*>(&count), sizeof count);
+    for (const std::string& s : passes) put(s);
+    return bytes;
+}
+
+namespace {
+// Tests: PENUMBRA_TEST_KILL_AT_SAVE=m kills the run by SIGKILL right after its m-th save (with row
+// blocks, every rank once all have saved).
+void killAtTestSave(int saves, bool everyRank) {
+    if (const char* kill = std::getenv("PENUMBRA_TEST_KILL_AT_SAVE"); kill && std::atoi(kill) == saves) {
+        if (everyRank) cluster::barrier();
         std::raise(SIGKILL);
+    }
+}
+}  // namespace
+
+void SolveCheckpoint::save(int pass, std::string rows) {
+    if (pass < 0) return;
+    if (saved_.size() <= size_t(pass)) saved_.resize(size_t(pass) + 1);
+    saved_[size_t(pass)] = std::move(rows);
+    saved_.resize(size_t(pass) + 1);  // a later pass of an older run no longer follows
+    lastSave_ = now();
+    if (!cluster::leader() || !writesNow()) return;
+    writeFileAtomic(path_, fileBytes(saved_));
+    killAtTestSave(++saves_, false);
+}
+
+const std::string& SolveCheckpoint::ownRows(int pass) const {
+    if (cluster::leader()) return savedRows(pass);
+    static const std::string none;
+    return pass >= 0 && size_t(pass) < own_.size() ? own_[size_t(pass)] : none;
+}
+
+bool SolveCheckpoint::writesNow() const {
+    return std::getenv("PENUMBRA_TEST_CHECKPOINT_ROWS") != nullptr || now() - started_ >= kFirstSaveSeconds;
+}
+
+void SolveCheckpoint::saveOwn(int pass, std::string rows, bool write) {
+    if (pass < 0) return;
+    std::vector<std::string>& passes = cluster::leader() ? saved_ : own_;
+    if (passes.size() <= size_t(pass)) passes.resize(size_t(pass) + 1);
+    passes[size_t(pass)] = std::move(rows);
+    passes.resize(size_t(pass) + 1);
+    lastSave_ = now();
+    if (write) writeFileAtomic(cluster::leader() ? path_ : ownPath(), fileBytes(passes));
+    // Not kept in memory: a rank's rows are what it has room for once (a resume reads the file).
+    passes[size_t(pass)] = std::string();
+    if (write) killAtTestSave(++saves_, true);
+}
+
+void SolveCheckpoint::forget(int pass) {
+    for (std::vector<std::string>* passes : {&saved_, &own_})
+        if (pass >= 0 && size_t(pass) < passes->size()) (*passes)[size_t(pass)] = std::string();
 }
 
 void SolveCheckpoint::remove() {
-    if (saves_ > 0 || !saved_.empty() || next_ > 0) {
-        if (cluster::leader()) ::unlink(path_.c_str());
-    }
+    if (saves_ > 0 || !saved_.empty() || !own_.empty() || next_ > 0)
+        ::unlink(cluster::leader() ? path_.c_str() : ownPath().c_str());
 }
 
 }  // namespace penumbra

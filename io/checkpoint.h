@@ -26,17 +26,28 @@ public:
     // Throws Error naming the file and what differs when it was made for another scene, other
     // settings or another build of penumbra, or when it is damaged.
     void resume(const std::string& bytes);
+    // Rank r > 0's own file (row blocks: each rank's rows), DIR/checkpoint.bin.rank-R, as read by it;
+    // refused as resume() refuses.
+    std::string ownPath() const;
+    void resumeOwn(const std::string& bytes);
     int beginPass() override;
     const std::string& savedRows(int pass) const override;
     bool due() const override;
     void save(int pass, std::string rows) override;
-    // The solve is over (written, or failed with an error): the file goes.
+    const std::string& ownRows(int pass) const override;
+    bool writesNow() const override;
+    void saveOwn(int pass, std::string rows, bool write) override;
+    void forget(int pass) override;
+    // The solve is over (written, or failed with an error): the files go.
     void remove();
     int passesResumed() const { return int(saved_.size()); }
 
 private:
+    std::vector<std::string> parse(const std::string& bytes, const std::string& path) const;
+    std::string fileBytes(const std::vector<std::string>& passes) const;
     std::string path_, identity_;
     std::vector<std::string> saved_;  // per pass, its rows
+    std::vector<std::string> own_;    // rank r > 0, row blocks: per pass, this rank's rows
     int next_ = 0;
     int saves_ = 0;
     double lastSave_, started_;

@@ -97,7 +97,9 @@ std::string reportJson(const Scene& scene, const SolveResult& r, double peakMemo
           {"specular_unresolved_share", r.system.transport.unresolvedShare}}},
         {"form_factor_row_sum", {{"min", r.rowSumMin}, {"max", r.rowSumMax}}},
         {"closed_scene", r.closedScene},
+        // With row blocks (docs/distributed.md), what rank 0 held: one block of this many.
         {"matrix_mib", double(r.F.bytes()) / (1 << 20)},
+        {"matrix_row_blocks", r.F.inRowBlocks() ? r.F.rowBlocks().size() - 1 : 0},
         {"peak_memory_mib", peakMemory / (1 << 20)},
     };
     if (!r.solverReason.empty()) report["solver"]["chosen_because"] = r.solverReason;

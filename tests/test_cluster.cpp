@@ -178,13 +178,14 @@ TEST(Cluster, AMatrixTooLargeForOneRankIsHeldInRowBlocks) {
     double worst = 0;
     for (size_t i = 0; i < a.corners.size(); ++i)
         for (size_t k = 0; k < 4; ++k)
-            worst = std::max(worst, ((a.corners[i][k] - b.corners[i][k]).abs() /
-                                     a.corners[i][k].abs().max(1e-300)).maxCoeff());
+            worst = std::max(
+                worst, ((a.corners[i][k] - b.corners[i][k]).abs() / a.corners[i][k].abs().max(1e-300)).maxCoeff());
     EXPECT_LT(worst, 1e-12);
     // What needs every row on every rank is refused by name, before any work.
-    const CommandResult glass = runRanks(
-        2, cat("solve ", sceneFile("cornell-glass.json"), " --patches 200 --form-factors analytic --solver "
-               "gauss-seidel --quiet --max-memory 0.0003 --out ", out, "/glass"));
+    const CommandResult glass = runRanks(2, cat("solve ", sceneFile("cornell-glass.json"),
+                                                " --patches 200 --form-factors analytic --solver "
+                                                "gauss-seidel --quiet --max-memory 0.0003 --out ",
+                                                out, "/glass"));
     EXPECT_NE(glass.status, 0);
     EXPECT_NE(glass.output.find("mirrors and glass"), std::string::npos) << glass.output;
     EXPECT_FALSE(fs::exists(out + "/glass/solution.bin"));
@@ -285,6 +286,41 @@ TEST(Checkpoint, AnAnalyticSolveKilledAndResumedEqualsTheUninterruptedOne) {
     ASSERT_EQ(logs.size(), 2u);
     EXPECT_NE(logs[0].find("form factors: 10 of "), std::string::npos) << logs[0];
     EXPECT_NE(logs[1].find("form factors: 40 of "), std::string::npos) << logs[1];
+}
+
+// Row blocks: every rank saves its own rows (checkpoint.bin holds rank 0's, checkpoint.bin.rank-R the
+// others'), with the list of blocks done. Killed by SIGKILL after the 3rd save (rounds of 5 blocks),
+// resumed by 2 ranks: the blocks saved are not computed again and the solve is the uninterrupted
+// one's; resumed by 3, whose rows differ, the matrix is made again, with a warning, to the same end.
+// No checkpoint file stays.
+TEST(Checkpoint, ARowBlockSolveKilledAndResumedEqualsTheUninterruptedOne) {
+    const std::string out = test::tempDir() + "/checkpoint-rows";
+    fs::remove_all(out);
+    const std::string args = sceneFile("white-furnace.json") +
+                             " --patches 300 --form-factors analytic --solver gauss-seidel --max-memory 0.0004";
+    ASSERT_EQ(run(cat("solve ", sceneFile("white-furnace.json"),
+                      " --patches 300 --form-factors analytic --solver gauss-seidel --quiet --out ", out, "/whole"))
+                  .status,
+              0);
+    const std::string whole = bytesOf(out + "/whole/solution.bin");
+    ASSERT_FALSE(whole.empty());
+    for (int ranks : {2, 3}) {
+        const std::string dir = cat(out, "/killed-", ranks);
+        const CommandResult killed = runRanks(2, cat("solve ", args, " --quiet --out ", dir),
+                                              "PENUMBRA_TEST_CHECKPOINT_ROWS=5 PENUMBRA_TEST_KILL_AT_SAVE=3");
+        EXPECT_NE(killed.status, 0) << killed.output;
+        EXPECT_TRUE(fs::exists(dir + "/checkpoint.bin"));
+        EXPECT_TRUE(fs::exists(dir + "/checkpoint.bin.rank-1"));
+        const CommandResult resumed = runRanks(ranks, cat("solve ", args, " --out ", dir, " --resume"));
+        ASSERT_EQ(resumed.status, 0) << resumed.output;
+        EXPECT_TRUE(bytesOf(dir + "/solution.bin") == whole) << ranks;
+        if (ranks == 2)
+            EXPECT_NE(resumed.output.find("blocks of rows from the ranks' checkpoints"), std::string::npos)
+                << resumed.output;
+        else
+            EXPECT_NE(resumed.output.find("computing the matrix again"), std::string::npos) << resumed.output;
+        for (const std::string& f : filesIn(dir)) EXPECT_EQ(f.find("checkpoint"), std::string::npos) << f;
+    }
 }
 
 // A checkpoint made for another scene, or with other settings, is refused by name, and kept for the

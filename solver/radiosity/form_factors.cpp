@@ -336,6 +336,59 @@ void receiveBlocks(FormFactorMatrix& F, const std::vector<std::string>& from) {
     }
 }
 
+// Row blocks: what a rank keeps in its checkpoint: the ranks and its rows' range, the blocks done
+// (every rank's: the same list on each), every back transfer, and its rows.
+std::string packHeldRows(const FormFactorMatrix& F, const std::vector<char>& done) {
+    cluster::Packer packed;
+    std::vector<int64_t> finished;
+    for (size_t k = 0; k < done.size(); ++k)
+        if (done[k]) finished.push_back(int64_t(k));
+    packed.put(int64_t(cluster::size())), packed.put(uint64_t(F.firstRow())), packed.put(uint64_t(F.endRow()));
+    packed.put(finished);
+    packed.put(F.backTransfers);
+    packed.put(F.row(F.firstRow()), (F.endRow() - F.firstRow()) * F.size());
+    return std::move(packed.bytes);
+}
+
+// A row-block checkpoint back into F and `done`, when every rank has one of the same blocks for this
+// many ranks (a kill between two ranks' saves, or another count of ranks, leaves them apart: the
+// matrix is then made again). Returns the blocks taken.
+int64_t resumeHeldRows(FormFactorMatrix& F, const std::string& saved, std::vector<char>& done) {
+    std::vector<int64_t> finished;
+    std::vector<BackTransfer> back;
+    bool usable = false;
+    if (!saved.empty()) {
+        cluster::Unpacker in(saved);
+        int64_t ranks = 0;
+        uint64_t first = 0, end = 0;
+        in.get(ranks), in.get(first), in.get(end);
+        usable = ranks == cluster::size() && first == F.firstRow() && end == F.endRow();
+        if (usable) {
+            in.get(finished), in.get(back);
+            for (int64_t k : finished) usable = usable && k >= 0 && size_t(k) < done.size();
+            // Straight into the rows this rank holds (zero until then): no second copy of them.
+            usable = usable && in.get(&F(first, 0), (end - first) * F.size()) && in.done();
+        }
+    }
+    cluster::Packer mine;
+    mine.put(int64_t(usable));
+    mine.put(usable ? finished : std::vector<int64_t>());
+    const std::vector<std::string> all = cluster::allGather(mine.bytes);
+    for (const std::string& theirs : all)
+        if (theirs != all[0]) usable = false;
+    if (!usable) {
+        if (!saved.empty()) F = FormFactorMatrix(F.size(), F.rowBlocks(), cluster::rank());  // rows read: zero again
+        if (!saved.empty() || all[0] != mine.bytes)
+            logWarning(
+                "form factors: the ranks' checkpoints of their rows do not match (another count of ranks, or "
+                "a kill between two ranks' saves): computing the matrix again");
+        return 0;
+    }
+    F.backTransfers = back;
+    for (int64_t k : finished) done[size_t(k)] = 1;
+    return int64_t(finished.size());
+}
+
 // A round of blocks takes about this long (by the last round's pace): the ranks exchange their rows
 // after each, and the checkpoint takes them when due (at least every 20 s).
 constexpr double kRoundSeconds = 5;
@@ -354,10 +407,14 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
     const int64_t blocks = int64_t(start.size()) - 1;
     std::vector<char> done(size_t(blocks), 0);
     // A killed solve's blocks, from its checkpoint (io/checkpoint.h).
-    // (Row blocks: no rank holds the whole matrix to save; a resume computes them again.)
-    CastCheckpoint* checkpoint = blocked ? nullptr : settings.checkpoint;
+    CastCheckpoint* checkpoint = settings.checkpoint;
     const int pass = checkpoint ? checkpoint->beginPass() : 0;
-    if (checkpoint && !checkpoint->savedRows(pass).empty()) {
+    if (checkpoint && blocked) {
+        // Row blocks: each rank its own rows, from a file of its own.
+        if (const int64_t resumed = resumeHeldRows(F, checkpoint->ownRows(pass), done); resumed > 0)
+            logInfo("form factors: ", resumed, " of ", blocks, " blocks of rows from the ranks' checkpoints");
+        checkpoint->forget(pass);
+    } else if (checkpoint && !checkpoint->savedRows(pass).empty()) {
         unpackBlocks(F, start, checkpoint->savedRows(pass), done);
         logInfo("form factors: ", std::count(done.begin(), done.end(), 1), " of ", blocks,
                 " blocks of rows from the checkpoint");
@@ -470,14 +527,19 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
         if (blocked) {
             // Each value to the rank that holds its row; every rank keeps every back transfer.
             receiveBlocks(F, cluster::exchange(routeBlocks(F, start, roundBlocks)));
+            // Every rank knows every block done (the checkpoint's list) and keeps every back transfer.
             cluster::Packer back;
+            back.put(mine);
             back.put(roundBack);
             const std::vector<std::string> all = cluster::allGather(back.bytes);
             for (int r = 0; r < cluster::size(); ++r)
                 if (r != cluster::rank()) {
                     cluster::Unpacker from(all[size_t(r)]);
+                    std::vector<int64_t> theirBlocks;
                     std::vector<BackTransfer> theirs;
+                    from.get(theirBlocks);
                     from.get(theirs);
+                    for (int64_t k : theirBlocks) done[size_t(k)] = 1;
                     F.backTransfers.insert(F.backTransfers.end(), theirs.begin(), theirs.end());
                 }
         } else if (cluster::distributed()) {
@@ -491,14 +553,22 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
         // The next round at this one's pace, as the leader measured it (every rank takes the same).
         uint64_t next = uint64_t(
             std::clamp(double(take) / std::max(roundTimer.seconds(), 1e-3) * kRoundSeconds, 1.0, double(left.size())));
-        std::string sent(reinterpret_cast<const char*>(&next), sizeof next);
+        // And whether to save now (row blocks: every rank its rows, by the leader's clock): 0 no, 1 keep,
+        // 2 keep and write.
+        const uint64_t save =
+            checkpoint && at < left.size() && checkpoint->due() ? (checkpoint->writesNow() ? 2 : 1) : 0;
+        uint64_t told[2] = {next, save};
+        std::string sent(reinterpret_cast<const char*>(told), sizeof told);
         sent = cluster::broadcast(sent);
-        std::memcpy(&next, sent.data(), sizeof next);
+        std::memcpy(told, sent.data(), sizeof told);
+        next = told[0];
         round = fixed ? fixedRound : next;
         // Row blocks: a round's values are held (and copied for the exchange) until it ends; at most a
         // sixteenth of the blocks keeps them under a quarter of what each rank holds.
         if (blocked) round = std::min<uint64_t>(round, std::max<int64_t>(1, blocks / 16));
-        if (checkpoint && cluster::leader() && at < left.size() && checkpoint->due()) {
+        if (blocked && told[1] > 0) {
+            checkpoint->saveOwn(pass, packHeldRows(F, done), told[1] == 2);
+        } else if (!blocked && cluster::leader() && told[1] > 0) {
             std::vector<int64_t> finished;
             for (int64_t k = 0; k < blocks; ++k)
                 if (done[size_t(k)]) finished.push_back(k);
@@ -507,7 +577,10 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
     }
     progress.done();
     // The pass done: all its rows into the checkpoint (a stage boundary).
-    if (checkpoint && cluster::leader()) {
+    if (checkpoint && blocked) {
+        const std::string write = cluster::broadcast(std::string(1, checkpoint->writesNow() ? '1' : '0'));
+        checkpoint->saveOwn(pass, packHeldRows(F, done), write == "1");
+    } else if (checkpoint && cluster::leader()) {
         std::vector<int64_t> all(static_cast<size_t>(blocks));
         std::iota(all.begin(), all.end(), 0);
         checkpoint->save(pass, packBlocks(F, start, all, F.backTransfers));

@@ -32,6 +32,17 @@ public:
     virtual const std::string& savedRows(int pass) const = 0;  // empty: none saved
     virtual bool due() const = 0;                              // time to save the rows cast so far
     virtual void save(int pass, std::string rows) = 0;         // the pass's rows so far, atomically
+    // Row blocks, where each rank saves its own rows: what this rank saved of the pass (rank 0's are
+    // savedRows), whether a save now would write (the leader decides for every rank), and the save
+    // of this rank's rows by every rank, into a file of its own.
+    virtual const std::string& ownRows(int pass) const { return savedRows(pass); }
+    virtual bool writesNow() const { return true; }
+    // Row blocks: the pass's saved bytes read, not kept in memory (the rows are).
+    virtual void forget(int pass) { (void)pass; }
+    virtual void saveOwn(int pass, std::string rows, bool write) {
+        (void)write;
+        save(pass, std::move(rows));
+    }
 };
 
 struct FormFactorSettings {
@@ -71,8 +82,7 @@ public:
 
     FormFactorMatrix() = default;
     // Dense and zero: the analytic matrix, every pair a number.
-    explicit FormFactorMatrix(size_t n)
-        : n_(n), endRow_(n), values_(Dense::Zero(Eigen::Index(n), Eigen::Index(n))) {}
+    explicit FormFactorMatrix(size_t n) : n_(n), endRow_(n), values_(Dense::Zero(Eigen::Index(n), Eigen::Index(n))) {}
     // Dense and zero, in row blocks: rank r holds rows [blockStart[r], blockStart[r + 1]) of n
     // columns, and this one is rank `rank`'s (a matrix too large for one host, under mpirun).
     FormFactorMatrix(size_t n, std::vector<size_t> blockStart, int rank);
@@ -90,9 +100,7 @@ public:
     // The rank holding row i (0 without row blocks).
     int rowOwner(size_t i) const;
     // Entries stored: n^2 dense (the rows held in row blocks), the nonzeros sparse.
-    uint64_t entries() const {
-        return isSparse() ? uint64_t(value_.size()) : uint64_t(endRow_ - firstRow_) * n_;
-    }
+    uint64_t entries() const { return isSparse() ? uint64_t(value_.size()) : uint64_t(endRow_ - firstRow_) * n_; }
     uint64_t bytes() const;
     float operator()(size_t i, size_t j) const;
     // Dense matrices only.

@@ -235,8 +235,8 @@ CornerValues gatherCorners(const PatchSet& p, const RadiositySystem& s, const Fo
     if (F.inRowBlocks() && cluster::distributed()) {
         // Each rank gathered from its rows: the sums added in rank order (so within rounding of one
         // process's, which adds the patches in one sum: 1e-16 relative).
-        const std::vector<std::string> all = cluster::allGather(
-            std::string(reinterpret_cast<const char*>(own.data()), own.size() * sizeof(own[0])));
+        const std::vector<std::string> all =
+            cluster::allGather(std::string(reinterpret_cast<const char*>(own.data()), own.size() * sizeof(own[0])));
         for (size_t r = 0; r < all.size(); ++r) {
             PENUMBRA_CHECK(all[r].size() == own.size() * sizeof(own[0]));
             CornerValues theirs(n);
