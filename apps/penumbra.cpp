@@ -260,22 +260,31 @@ int runSolve(SolveCli& s, const CommonOptions& common) {
         ~RemoveAtEnd() { c.remove(); }
     } removeAtEnd{checkpoint};
     if (s.resume) {
-        std::string bytes;
+        // The leader reads the file and sends the other ranks its passes (those in row blocks cut to
+        // their tag: each rank reads its own rows, DIR/checkpoint.bin.rank-R).
+        std::string shared;
         if (cluster::leader()) {
             std::ifstream in((std::filesystem::path(s.out) / "checkpoint.bin").string(), std::ios::binary);
-            bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+            const std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+            if (!bytes.empty()) {
+                checkpoint.resume(bytes);
+                shared = checkpoint.shareable();
+            }
         }
-        bytes = cluster::broadcast(bytes);
-        // A matrix in row blocks: every other rank's rows in a file of its own.
+        shared = cluster::broadcast(shared);
         if (!cluster::leader()) {
+            if (!shared.empty()) checkpoint.resume(shared);
             std::ifstream own(checkpoint.ownPath(), std::ios::binary);
             const std::string mine{std::istreambuf_iterator<char>(own), std::istreambuf_iterator<char>()};
-            if (!mine.empty()) checkpoint.resumeOwn(mine);
+            try {
+                if (!mine.empty()) checkpoint.resumeOwn(mine);
+            } catch (const Error& e) {  // another run's: this rank computes its rows again
+                logWarning(e.what(), " (not used)");
+            }
         }
-        if (bytes.empty()) {
+        if (shared.empty()) {
             logInfo("--resume: no checkpoint in ", s.out, ": solving from the start");
         } else {
-            checkpoint.resume(bytes);
             logInfo("--resume: carrying on from ", s.out, "/checkpoint.bin (", checkpoint.passesResumed(),
                     " form-factor passes saved)");
         }

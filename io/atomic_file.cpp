@@ -32,12 +32,16 @@ void commitFile(const std::string& temporary, const std::string& path) {
 }
 
 void writeFileAtomic(const std::string& path, const std::string& contents) {
+    writeFileAtomic(path, std::vector<std::string_view>{contents});
+}
+
+void writeFileAtomic(const std::string& path, const std::vector<std::string_view>& parts) {
     faultPoint(path);
     const std::string tmp = temporarySibling(path);
     {
         std::ofstream out(tmp, std::ios::binary);
         if (!out) throw Error(cat(path, ": cannot open for writing"));
-        out << contents;
+        for (const std::string_view part : parts) out.write(part.data(), std::streamsize(part.size()));
         out.flush();
         if (!out) {
             std::error_code ec;

@@ -3,6 +3,8 @@
 #pragma once
 
 #include <string>
+#include <string_view>
+#include <vector>
 
 namespace penumbra {
 
@@ -13,6 +15,8 @@ std::string temporarySibling(const std::string& path);
 void commitFile(const std::string& temporary, const std::string& path);
 // Writes `contents` to `path` atomically.
 void writeFileAtomic(const std::string& path, const std::string& contents);
+// The parts one after the other (no copy of them joined).
+void writeFileAtomic(const std::string& path, const std::vector<std::string_view>& parts);
 // Creates `dir` (and parents) if missing; throws Error naming it if that fails or it is a file.
 void ensureDirectory(const std::string& dir);
 

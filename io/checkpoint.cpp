@@ -6,7 +6,9 @@
 #include <csignal>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <sstream>
+#include <string_view>
 
 #include "core/cluster.h"
 #include "core/error.h"
@@ -116,17 +118,26 @@ bool SolveCheckpoint::due() const {
     return std::getenv("PENUMBRA_TEST_CHECKPOINT_ROWS") || now() - lastSave_ >= kSaveSeconds;
 }
 
-std::string SolveCheckpoint::fileBytes(const std::vector<std::string>& passes) const {
+namespace {
+void appendText(std::string& bytes, std::string_view text) {
+    const uint64_t length = text.size();
+    bytes.append(reinterpret_cast<const char*>(&length), sizeof length);
+    bytes.append(text.data(), text.size());
+}
+}  // namespace
+
+std::string SolveCheckpoint::fileHead(size_t passes) const {
     std::string bytes(kMagic, 8);
-    const auto put = [&](const std::string& s) {
-        const uint64_t length = s.size();
-        bytes.append(reinterpret_cast<const char*>(&length), sizeof length);
-        bytes += s;
-    };
-    put(identity_);
-    const uint64_t count = passes.size();
+    appendText(bytes, identity_);
+    const uint64_t count = passes;
     bytes.append(reinterpret_cast<const char*>(&count), sizeof count);
-    for (const std::string& s : passes) put(s);
+    return bytes;
+}
+
+std::string SolveCheckpoint::shareable() const {
+    std::string bytes = fileHead(saved_.size());
+    for (const std::string& pass : saved_)
+        appendText(bytes, isRowBlockPass(pass) ? std::string_view(kRowBlockTag, sizeof kRowBlockTag) : pass);
     return bytes;
 }
 
@@ -148,7 +159,9 @@ void SolveCheckpoint::save(int pass, std::string rows) {
     saved_.resize(size_t(pass) + 1);  // a later pass of an older run no longer follows
     lastSave_ = now();
     if (!cluster::leader() || !writesNow()) return;
-    writeFileAtomic(path_, fileBytes(saved_));
+    std::string bytes = fileHead(saved_.size());
+    for (const std::string& s : saved_) appendText(bytes, s);
+    writeFileAtomic(path_, bytes);
     killAtTestSave(++saves_, false);
 }
 
@@ -162,17 +175,19 @@ bool SolveCheckpoint::writesNow() const {
     return std::getenv("PENUMBRA_TEST_CHECKPOINT_ROWS") != nullptr || now() - started_ >= kFirstSaveSeconds;
 }
 
-void SolveCheckpoint::saveOwn(int pass, std::string rows, bool write) {
+void SolveCheckpoint::saveOwn(int pass, const std::string& head, const char* rows, size_t rowBytes) {
     if (pass < 0) return;
     std::vector<std::string>& passes = cluster::leader() ? saved_ : own_;
-    if (passes.size() <= size_t(pass)) passes.resize(size_t(pass) + 1);
-    passes[size_t(pass)] = std::move(rows);
-    passes.resize(size_t(pass) + 1);
-    lastSave_ = now();
-    if (write) writeFileAtomic(cluster::leader() ? path_ : ownPath(), fileBytes(passes));
-    // Not kept in memory: a rank's rows are what it has room for once (a resume reads the file).
+    passes.resize(size_t(pass) + 1);  // earlier passes kept, a later one of an older run dropped
     passes[size_t(pass)] = std::string();
-    if (write) killAtTestSave(++saves_, true);
+    lastSave_ = now();
+    std::string bytes = fileHead(passes.size());
+    for (size_t k = 0; k < size_t(pass); ++k) appendText(bytes, passes[k]);
+    const uint64_t length = head.size() + rowBytes;
+    bytes.append(reinterpret_cast<const char*>(&length), sizeof length);
+    bytes += head;
+    writeFileAtomic(cluster::leader() ? path_ : ownPath(), {bytes, std::string_view(rows, rowBytes)});
+    killAtTestSave(++saves_, true);
 }
 
 void SolveCheckpoint::forget(int pass) {
@@ -181,8 +196,19 @@ void SolveCheckpoint::forget(int pass) {
 }
 
 void SolveCheckpoint::remove() {
-    if (saves_ > 0 || !saved_.empty() || !own_.empty() || next_ > 0)
-        ::unlink(cluster::leader() ? path_.c_str() : ownPath().c_str());
+    if (!(saves_ > 0 || !saved_.empty() || !own_.empty() || next_ > 0)) return;
+    if (!cluster::leader()) {
+        ::unlink(ownPath().c_str());
+        return;
+    }
+    ::unlink(path_.c_str());
+    // And every rank's rows that it can see (a rank that was stopped by another's failure, or one
+    // that the last run had and this one has not), as the others' files on a shared file system.
+    const std::filesystem::path main(path_);
+    const std::string prefix = main.filename().string() + ".rank-";
+    std::error_code ec;
+    for (const auto& entry : std::filesystem::directory_iterator(main.parent_path(), ec))
+        if (entry.path().filename().string().rfind(prefix, 0) == 0) std::filesystem::remove(entry.path(), ec);
 }
 
 }  // namespace penumbra

@@ -26,6 +26,9 @@ public:
     // Throws Error naming the file and what differs when it was made for another scene, other
     // settings or another build of penumbra, or when it is damaged.
     void resume(const std::string& bytes);
+    // What the leader sends the other ranks after resume(): the file's passes, those in row blocks
+    // cut to their tag (each rank has its own rows).
+    std::string shareable() const;
     // Rank r > 0's own file (row blocks: each rank's rows), DIR/checkpoint.bin.rank-R, as read by it;
     // refused as resume() refuses.
     std::string ownPath() const;
@@ -36,7 +39,7 @@ public:
     void save(int pass, std::string rows) override;
     const std::string& ownRows(int pass) const override;
     bool writesNow() const override;
-    void saveOwn(int pass, std::string rows, bool write) override;
+    void saveOwn(int pass, const std::string& head, const char* rows, size_t rowBytes) override;
     void forget(int pass) override;
     // The solve is over (written, or failed with an error): the files go.
     void remove();
@@ -44,7 +47,8 @@ public:
 
 private:
     std::vector<std::string> parse(const std::string& bytes, const std::string& path) const;
-    std::string fileBytes(const std::vector<std::string>& passes) const;
+    // The file's bytes up to the passes (magic, identity, the count of passes).
+    std::string fileHead(size_t passes) const;
     std::string path_, identity_;
     std::vector<std::string> saved_;  // per pass, its rows
     std::vector<std::string> own_;    // rank r > 0, row blocks: per pass, this rank's rows

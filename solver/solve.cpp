@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <numeric>
@@ -66,6 +67,21 @@ void checkSteadyState(const Scene& scene, const RadiositySystem& s, const std::v
 }  // namespace
 
 double availableMemoryBytes() { return procKilobytes("/proc/meminfo", "MemAvailable:"); }
+
+double matrixBudget(const SolveOptions& options) {
+    if (options.maxMemoryBytes > 0) return options.maxMemoryBytes;
+    double mine = availableMemoryBytes() / cluster::ranksOnHost();
+    if (!cluster::distributed()) return mine;
+    // Every rank must choose alike (a matrix in row blocks or whole, the solver): the least of them.
+    double least = 0;
+    for (const std::string& theirs :
+         cluster::allGather(std::string(reinterpret_cast<const char*>(&mine), sizeof mine))) {
+        double b = 0;
+        std::memcpy(&b, theirs.data(), std::min(sizeof b, theirs.size()));
+        if (b > 0) least = least > 0 ? std::min(least, b) : b;
+    }
+    return least;
+}
 double peakMemoryBytes() { return procKilobytes("/proc/self/status", "VmHWM:"); }
 
 bool resetPeakMemory() {
@@ -375,7 +391,7 @@ std::vector<int> raysForObjectNoise(const Scene& scene, const SolveOptions& opti
 // iterative solve and the power balance. Stage times add to those already in `r`.
 void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObserver& observer, SolveResult& r) {
     const size_t n = r.patches.size();
-    const double budget = options.maxMemoryBytes > 0 ? options.maxMemoryBytes : availableMemoryBytes();
+    const double budget = matrixBudget(options);
     const double need = matrixBytes(options, n) + 400.0 * double(n);
     SolveOptions blocked = options;  // row blocks: the form factors' settings say whose rows
     const int ranks = cluster::size();
@@ -642,7 +658,7 @@ void gradeCausticMesh(const Scene& scene, const SolveOptions& options, SolveResu
 
 // What --solver auto runs, and why.
 std::string chooseSolver(const Scene& scene, const SolveOptions& options, size_t n, std::string& why) {
-    const double budget = options.maxMemoryBytes > 0 ? options.maxMemoryBytes : availableMemoryBytes();
+    const double budget = matrixBudget(options);
     const double matrix = matrixBytes(options, n);
     const double mib = double(1 << 20);
     if (scene.hasSpecular()) {

@@ -130,6 +130,9 @@ std::vector<std::string> allSolverNames();
 
 // Bytes of memory available to this process (MemAvailable), or 0 if unknown.
 double availableMemoryBytes();
+// What the matrix may take on this rank: --max-memory, else what the host has available over the
+// ranks started on it; under mpirun the least of every rank's (all ranks then choose alike).
+double matrixBudget(const SolveOptions& options);
 // Peak resident memory of this process so far, bytes.
 double peakMemoryBytes();
 // Starts the peak over from the current resident memory (Linux clear_refs), so that the peak of one

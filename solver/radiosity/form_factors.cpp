@@ -294,20 +294,19 @@ std::vector<std::string> routeBlocks(const FormFactorMatrix& F, const std::vecto
     const size_t n = F.size();
     const std::vector<size_t>& owners = F.rowBlocks();
     std::vector<cluster::Packer> to(owners.size() - 1);
-    std::vector<float> part;
     for (const ComputedBlock& c : computed) {
         const float* at = c.pairs.data();
         for (size_t i = start[size_t(c.block)]; i < start[size_t(c.block) + 1]; ++i) {
             const size_t count = n - 1 - i;
             cluster::Packer& rowRank = to[size_t(F.rowOwner(i))];
             rowRank.put(int64_t(i)), rowRank.put(int64_t(0)), rowRank.put(int64_t(i + 1));
-            rowRank.put(std::vector<float>(at, at + count));
+            rowRank.put(at, count);
             at += count;
             for (size_t r = 0; r + 1 < owners.size(); ++r) {
                 const size_t b = std::max(owners[r], i + 1), e = owners[r + 1];
                 if (b >= e) continue;
                 to[r].put(int64_t(i)), to[r].put(int64_t(1)), to[r].put(int64_t(b));
-                to[r].put(std::vector<float>(at + (b - i - 1), at + (e - i - 1)));
+                to[r].put(at + (b - i - 1), e - b);
             }
             at += count;
         }
@@ -336,18 +335,26 @@ void receiveBlocks(FormFactorMatrix& F, const std::vector<std::string>& from) {
     }
 }
 
-// Row blocks: what a rank keeps in its checkpoint: the ranks and its rows' range, the blocks done
-// (every rank's: the same list on each), every back transfer, and its rows.
-std::string packHeldRows(const FormFactorMatrix& F, const std::vector<char>& done) {
+// Row blocks: what a rank keeps in its checkpoint: the tag, the ranks and its rows' range, the
+// blocks done (every rank's: the same list on each), every back transfer, and its rows (their count
+// here; the floats follow, written from F: saveOwn).
+std::string rowBlockHead(const FormFactorMatrix& F, const std::vector<char>& done) {
     cluster::Packer packed;
+    packed.bytes.assign(kRowBlockTag, sizeof kRowBlockTag);
     std::vector<int64_t> finished;
     for (size_t k = 0; k < done.size(); ++k)
         if (done[k]) finished.push_back(int64_t(k));
     packed.put(int64_t(cluster::size())), packed.put(uint64_t(F.firstRow())), packed.put(uint64_t(F.endRow()));
     packed.put(finished);
     packed.put(F.backTransfers);
-    packed.put(F.row(F.firstRow()), (F.endRow() - F.firstRow()) * F.size());
+    packed.put(uint64_t((F.endRow() - F.firstRow()) * F.size()));
     return std::move(packed.bytes);
+}
+
+void saveHeldRows(CastCheckpoint& checkpoint, int pass, const FormFactorMatrix& F, const std::vector<char>& done) {
+    const size_t floats = (F.endRow() - F.firstRow()) * F.size();
+    checkpoint.saveOwn(pass, rowBlockHead(F, done), floats ? reinterpret_cast<const char*>(F.row(F.firstRow())) : "",
+                       floats * sizeof(float));
 }
 
 // A row-block checkpoint back into F and `done`, when every rank has one of the same blocks for this
@@ -357,8 +364,10 @@ int64_t resumeHeldRows(FormFactorMatrix& F, const std::string& saved, std::vecto
     std::vector<int64_t> finished;
     std::vector<BackTransfer> back;
     bool usable = false;
-    if (!saved.empty()) {
+    if (isRowBlockPass(saved)) {
         cluster::Unpacker in(saved);
+        char tag[sizeof kRowBlockTag];
+        for (char& c : tag) in.get(c);
         int64_t ranks = 0;
         uint64_t first = 0, end = 0;
         in.get(ranks), in.get(first), in.get(end);
@@ -367,7 +376,8 @@ int64_t resumeHeldRows(FormFactorMatrix& F, const std::string& saved, std::vecto
             in.get(finished), in.get(back);
             for (int64_t k : finished) usable = usable && k >= 0 && size_t(k) < done.size();
             // Straight into the rows this rank holds (zero until then): no second copy of them.
-            usable = usable && in.get(&F(first, 0), (end - first) * F.size()) && in.done();
+            float none = 0;
+            usable = usable && in.get(end > first ? &F(first, 0) : &none, (end - first) * F.size()) && in.done();
         }
     }
     cluster::Packer mine;
@@ -414,6 +424,10 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
         if (const int64_t resumed = resumeHeldRows(F, checkpoint->ownRows(pass), done); resumed > 0)
             logInfo("form factors: ", resumed, " of ", blocks, " blocks of rows from the ranks' checkpoints");
         checkpoint->forget(pass);
+    } else if (checkpoint && isRowBlockPass(checkpoint->savedRows(pass))) {
+        logWarning(
+            "form factors: the checkpoint holds the matrix in row blocks, which this run does not use: "
+            "computing it again");
     } else if (checkpoint && !checkpoint->savedRows(pass).empty()) {
         unpackBlocks(F, start, checkpoint->savedRows(pass), done);
         logInfo("form factors: ", std::count(done.begin(), done.end(), 1), " of ", blocks,
@@ -566,8 +580,8 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
         // Row blocks: a round's values are held (and copied for the exchange) until it ends; at most a
         // sixteenth of the blocks keeps them under a quarter of what each rank holds.
         if (blocked) round = std::min<uint64_t>(round, std::max<int64_t>(1, blocks / 16));
-        if (blocked && told[1] > 0) {
-            checkpoint->saveOwn(pass, packHeldRows(F, done), told[1] == 2);
+        if (blocked && told[1] == 2) {  // (row blocks keep nothing in memory: only a write counts)
+            saveHeldRows(*checkpoint, pass, F, done);
         } else if (!blocked && cluster::leader() && told[1] > 0) {
             std::vector<int64_t> finished;
             for (int64_t k = 0; k < blocks; ++k)
@@ -579,7 +593,7 @@ FormFactorMatrix computeFormFactors(const PatchSet& patches, const RayScene& sce
     // The pass done: all its rows into the checkpoint (a stage boundary).
     if (checkpoint && blocked) {
         const std::string write = cluster::broadcast(std::string(1, checkpoint->writesNow() ? '1' : '0'));
-        checkpoint->saveOwn(pass, packHeldRows(F, done), write == "1");
+        if (write == "1") saveHeldRows(*checkpoint, pass, F, done);
     } else if (checkpoint && cluster::leader()) {
         std::vector<int64_t> all(static_cast<size_t>(blocks));
         std::iota(all.begin(), all.end(), 0);

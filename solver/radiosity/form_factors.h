@@ -37,13 +37,21 @@ public:
     // of this rank's rows by every rank, into a file of its own.
     virtual const std::string& ownRows(int pass) const { return savedRows(pass); }
     virtual bool writesNow() const { return true; }
+    // Writes this rank's bytes of the pass, `head` then `rowBytes` bytes at `rows` (its rows, written
+    // from where they are and not kept: a rank's rows are what it has room for once).
+    virtual void saveOwn(int pass, const std::string& head, const char* rows, size_t rowBytes) {
+        save(pass, head + std::string(rows, rowBytes));
+    }
     // Row blocks: the pass's saved bytes read, not kept in memory (the rows are).
     virtual void forget(int pass) { (void)pass; }
-    virtual void saveOwn(int pass, std::string rows, bool write) {
-        (void)write;
-        save(pass, std::move(rows));
-    }
 };
+
+// A pass saved in row blocks begins with this (saveOwn's head); a pass of the whole matrix's
+// blocks does not. A resume of the other kind computes the pass again.
+inline constexpr char kRowBlockTag[8] = {'P', 'N', 'B', 'R', 'O', 'W', 'S', '1'};
+inline bool isRowBlockPass(const std::string& bytes) {
+    return bytes.size() >= sizeof kRowBlockTag && std::memcmp(bytes.data(), kRowBlockTag, sizeof kRowBlockTag) == 0;
+}
 
 struct FormFactorSettings {
     CubatureSettings cubature;
@@ -131,7 +139,7 @@ public:
                 for (uint64_t k = meanStart_[i]; k < meanStart_[i + 1]; ++k)
                     meanValue_[k] *= float(meanFactor(size_t(meanColumn_[k])));
         } else {
-            float* r = values_.data() + (i - firstRow_) * n_;
+            float* r = const_cast<float*>(row(i));
             for (size_t j = 0; j < n_; ++j) r[j] *= float(factor(j));
         }
     }

@@ -133,7 +133,7 @@ double gaussSeidelPass(const RadiositySystem& s, const FormFactorMatrix& F, std:
             if (r == cluster::rank()) {
                 sweep(begin, end);
                 mine.put(change), mine.put(emitted);
-                mine.put(std::vector<Rgb>(B.begin() + int64_t(begin), B.begin() + int64_t(end)));
+                mine.put(B.data() + begin, end - begin);
             }
             const std::string bytes = cluster::broadcast(mine.bytes, r);
             cluster::Unpacker in(bytes);
