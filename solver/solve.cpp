@@ -409,9 +409,10 @@ void solveMatrix(const Scene& scene, const SolveOptions& options, const StepObse
         if (options.solver != "gauss-seidel" && options.solver != "jacobi")
             refuse(cat("--solver ", options.solver, " needs every row on every rank (gauss-seidel and jacobi do not)"));
         blocked.formFactors.rowBlocks = rowBlocksFor(n, ranks);
-        logInfo("form-factor matrix: ", n, " x ", n, " floats, ", matrixBytes(options, n) / (1 << 20),
-                " MiB, more than the ", budget / (1 << 20), " MiB allowed on one rank: held in row blocks, ",
-                matrixBytes(options, n) / ranks / (1 << 20), " MiB on each of the ", ranks, " ranks");
+        logInfo("form-factor matrix: ", n, " x ", n, " floats, ", matrixBytes(options, n) / (1 << 20), " MiB (",
+                need / (1 << 20), " MiB with the rest of the solve), more than the ", budget / (1 << 20),
+                " MiB allowed on one rank: held in row blocks, ", matrixBytes(options, n) / ranks / (1 << 20),
+                " MiB on each of the ", ranks, " ranks");
     } else if (budget > 0 && need > budget) {
         const size_t fit =
             castsFormFactors(options) ? size_t(double(n) * budget / need) : size_t(std::sqrt(budget / sizeof(float)));
