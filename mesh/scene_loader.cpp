@@ -47,6 +47,9 @@ std::string readFile(const std::string& path, const std::string& what) {
 }
 
 void checkCoordinate(const Vec3& p, double metres, const Where& w) {
+    // A NaN passes the comparison below, and one in every vertex left the scene's box empty (found
+    // by fuzz_import: an infinite extent).
+    if (!p.allFinite()) w.fail(cat("coordinate (", p.x(), ", ", p.y(), ", ", p.z(), ") is not a finite number"));
     if (p.cwiseAbs().maxCoeff() * metres > kAbsurdMetres) {
         const Vec3 m = p * metres;
         w.fail(cat("coordinate (", m.x(), ", ", m.y(), ", ", m.z(), ") m lies more than ", kAbsurdMetres,
@@ -94,6 +97,12 @@ void normaliseLengths(Scene& scene, const Where& top) {
         top.fail(cat("the scene is ", metres,
                      " m across: below 1e-100 m its areas and powers leave double "
                      "precision; check unit_scale"));
+    // Also above: 1e100 m squared is still a double, and the extent itself must be one (coordinates
+    // near the largest double have a difference that is not).
+    if (!(metres <= 1e100) || !(across <= 0x1p1000))
+        top.fail(cat("the scene is ", metres,
+                     " m across: above 1e100 m its areas and powers leave double "
+                     "precision; check unit_scale and the vertices' coordinates"));
     if (metres >= 0x1p-10 && metres <= 0x1p20) return;
     const double s = std::ldexp(1.0, std::ilogb(across) + 1);  // inside: [0.5, 1) units across
     const Eigen::Affine3d shrink(Eigen::Scaling(1 / s));

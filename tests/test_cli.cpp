@@ -470,6 +470,8 @@ TEST(Cli, AScaledSceneSolvesAndRendersAsAtItsOwnSize) {
     nlohmann::json j = original;
     j["unit_scale"] = 1e-300;
     expectRefused(j.dump(), {"m across", "check unit_scale"});
+    j["unit_scale"] = 1e300;
+    expectRefused(j.dump(), {"m from the origin", "check unit_scale"});
 }
 
 TEST(CliErrors, RenderWithoutCameraIsRefused) {
