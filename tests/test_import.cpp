@@ -332,7 +332,8 @@ TEST(Import, WhatAGltfCannotGiveIsRefusedByName) {
         {variant(good, "huge-count.gltf", R"("count": 3)", R"("count": 1000000000)"), "accessor"},
         // Positions that are NaN (every bit set): passed the distance check, and with all of them NaN
         // the scene's box was empty, its extent infinite (found by fuzz_import).
-        {variant(good, "nan.gltf", "base64,", "base64,////////////////////////////////////////////////\", \"_was\": \""),
+        {variant(good, "nan.gltf", "base64,",
+                 "base64,////////////////////////////////////////////////\", \"_was\": \""),
          "is not a finite number"},
     };
     for (const Case& c : cases) {
