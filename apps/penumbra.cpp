@@ -924,6 +924,8 @@ int main(int argc, char** argv) {
         ->check(inRange(1, 1 << 20));
     viewCmd->add_flag("--screenshot-window", viewer.wholeWindow,
                       "With --screenshot: save the window as shown, panel included");
+    viewCmd->add_flag("!--no-occlusion-culling", viewer.occlusionCulling,
+                      "Draw every cell of the scene in view, hidden or not (to check that culling changes nothing)");
     addSolveOptions(viewCmd, viewSolve);
 
     bench::BenchOptions benchOptions;

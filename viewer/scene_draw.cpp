@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "render/occlusion.h"
 #include "solver/tracer.h"
 
 namespace penumbra {
@@ -231,6 +232,12 @@ struct SceneDraw::State {
         Eigen::AlignedBox3f box;
     };
     std::vector<Cell> cells;
+    // The opaque diffuse polygons of the scene (its quads and triangles), which hide the cells
+    // behind them from the view; with their boxes, to draw the nearest first.
+    std::vector<std::vector<Eigen::Vector3d>> occluders;
+    std::vector<Eigen::AlignedBox3d> occluderBoxes;
+    bool occlusionCulling = true;
+    mutable size_t cellsInView = 0, cellsDrawn = 0;
     std::vector<Specular> objects;
     std::vector<Textured> textured;
     GLuint texturedProgram = 0;
@@ -267,14 +274,18 @@ SceneDraw::SceneDraw(const Scene& scene, const std::vector<float>& vertices, con
         };
         Eigen::AlignedBox3f bounds;
         for (unsigned v : ordered) bounds.extend(at(v));
-        constexpr int kGrid = 8;
+        // About eight triangles a cell of the grid (most cells are empty, the others hold a surface):
+        // the Cornell box's 6,000 in 9^3 cells (327 not empty), the building's 172,000 in 28^3 (one
+        // draw each: finer cells cost llvmpipe more calls than they save in a small scene, and hide
+        // more in a large one: 26.3 frames/s at 24^3, 25.2 at 16^3, 15.9 at 8^3, measured).
+        const int grid = std::clamp(int(std::lround(std::cbrt(double(ordered.size() / 3) / 8))), 4, 32);
         const Eigen::Vector3f size = bounds.sizes().cwiseMax(1e-30f);
-        std::vector<std::vector<unsigned>> inCell(kGrid * kGrid * kGrid);
+        std::vector<std::vector<unsigned>> inCell(size_t(grid * grid * grid));
         for (size_t k = 0; k + 2 < ordered.size(); k += 3) {
             const Eigen::Vector3f centre = (at(ordered[k]) + at(ordered[k + 1]) + at(ordered[k + 2])) / 3;
             int cell = 0;
             for (int c = 0; c < 3; ++c)
-                cell = cell * kGrid + std::clamp(int((centre[c] - bounds.min()[c]) / size[c] * kGrid), 0, kGrid - 1);
+                cell = cell * grid + std::clamp(int((centre[c] - bounds.min()[c]) / size[c] * grid), 0, grid - 1);
             inCell[size_t(cell)].insert(inCell[size_t(cell)].end(), &ordered[k], &ordered[k] + 3);
         }
         ordered.clear();
@@ -287,6 +298,13 @@ SceneDraw::SceneDraw(const Scene& scene, const std::vector<float>& vertices, con
             ordered.insert(ordered.end(), cell.begin(), cell.end());
             s.cells.push_back(c);
         }
+    }
+    for (const SceneObject& o : scene.objects) {
+        if (scene.materialOf(o).type != MaterialType::Diffuse) continue;
+        if (o.type != ShapeType::Quad && o.type != ShapeType::Triangle) continue;
+        s.occluders.push_back(o.vertices);
+        s.occluderBoxes.emplace_back();
+        for (const Vec3& v : o.vertices) s.occluderBoxes.back().extend(v);
     }
     // Each image once, as the ray tracers read it (bilinear between texel centres, the file's wraps),
     // mipmapped for the distance.
@@ -503,9 +521,42 @@ void SceneDraw::drawAll(const Eigen::Matrix4f& viewProjection, const Vec3& eye, 
         if (inside) shown.emplace_back(c.box.squaredExteriorDistance(from), &c);
     }
     std::sort(shown.begin(), shown.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    for (const auto& [distance, c] : shown)
+    std::unique_ptr<OcclusionBuffer> occlusion;
+    if (s.occlusionCulling && !s.occluders.empty()) {
+        GLint viewport[4];
+        glGetIntegerv(GL_VIEWPORT, viewport);
+        occlusion = std::make_unique<OcclusionBuffer>(viewProjection.cast<double>(), viewport[2], viewport[3]);
+        std::vector<std::pair<double, size_t>> order;
+        const Vec3 from64 = eye;
+        for (size_t k = 0; k < s.occluders.size(); ++k) {
+            bool inside = true;
+            for (const Eigen::Vector4f& p : planes) {
+                Vec3 far;
+                for (int c = 0; c < 3; ++c)
+                    far[c] = p[c] > 0 ? s.occluderBoxes[k].max()[c] : s.occluderBoxes[k].min()[c];
+                inside = inside && p.head<3>().cast<double>().dot(far) + double(p[3]) >= 0;
+            }
+            // Where back faces are culled (double-sided materials), a polygon seen from behind is
+            // not drawn, and hides nothing.
+            if (s.cullBackFaces) {
+                const std::vector<Eigen::Vector3d>& v = s.occluders[k];
+                Vec3 normal = Vec3::Zero();  // Newell's
+                for (size_t i = 0; i < v.size(); ++i) normal += v[i].cross(v[(i + 1) % v.size()]);
+                inside = inside && (from64 - v[0]).dot(normal) > 0;
+            }
+            if (inside) order.emplace_back(s.occluderBoxes[k].squaredExteriorDistance(from64), k);
+        }
+        std::sort(order.begin(), order.end());
+        for (const auto& [distance, k] : order)  // nearest first: one hidden behind those before adds nothing
+            if (!occlusion->hidden(s.occluderBoxes[k])) occlusion->occlude(s.occluders[k]);
+    }
+    s.cellsInView = shown.size(), s.cellsDrawn = 0;
+    for (const auto& [distance, c] : shown) {
+        if (occlusion && occlusion->hidden(c->box.cast<double>())) continue;
+        ++s.cellsDrawn;
         glDrawElements(GL_TRIANGLES, c->count, GL_UNSIGNED_INT,
                        reinterpret_cast<const void*>(size_t(c->first) * sizeof(unsigned)));
+    }
     if (!s.textured.empty()) {
         const GLuint p = s.texturedProgram;
         glUseProgram(p);
@@ -568,6 +619,10 @@ void SceneDraw::drawAll(const Eigen::Matrix4f& viewProjection, const Vec3& eye, 
     glDisable(GL_CULL_FACE);
     glDisable(GL_POLYGON_OFFSET_FILL);
 }
+
+void SceneDraw::setOcclusionCulling(bool on) { s_->occlusionCulling = on; }
+
+std::pair<size_t, size_t> SceneDraw::cellsInViewAndDrawn() const { return {s_->cellsInView, s_->cellsDrawn}; }
 
 void SceneDraw::drawEdges(const Eigen::Matrix4f& viewProjection) const {
     const State& s = *s_;

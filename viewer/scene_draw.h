@@ -51,6 +51,10 @@ public:
     // The patch outlines, black, over what draw() left.
     void drawEdges(const Eigen::Matrix4f& viewProjection) const;
     size_t probes() const;
+    // Occlusion culling (render/occlusion.h) of the grid's cells, on unless switched off (to check
+    // that it changes nothing); the last draw's cells in view and of those drawn.
+    void setOcclusionCulling(bool on);
+    std::pair<size_t, size_t> cellsInViewAndDrawn() const;
 
 private:
     // `exclude`: the object not drawn (the probe's own); `probes`: 0 draws mirrors and glass black,

@@ -286,6 +286,7 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
     std::optional<SceneDraw> drawn(std::in_place, scene, vertices, triangles, triangleObject, edges, textures,
                                    sceneSize, cullBackFaces);
     SceneDraw& draw = *drawn;
+    draw.setOcclusionCulling(options.occlusionCulling);
     const double probesStart = glfwGetTime();
     draw.renderProbes();
     if (draw.probes())
@@ -465,8 +466,11 @@ void runViewer(const Scene& scene, const PatchSet& patches, const CornerValues& 
                     if (nav.edges) draw.drawEdges(vp);
                     glFinish();
                 }
+                const auto [inView, cellsDrawn] = draw.cellsInViewAndDrawn();
                 logInfo("view: ", frame, " frames at ", width, "x", height, " in ", seconds, " s: ", frame / seconds,
-                        " frames/s; the scene alone drawn in ", 1e3 * (glfwGetTime() - drawStart) / 10, " ms");
+                        " frames/s; the scene alone drawn in ", 1e3 * (glfwGetTime() - drawStart) / 10, " ms (",
+                        cellsDrawn, " of the ", inView, " cells in view drawn, the others hidden",
+                        options.occlusionCulling ? "" : "; occlusion culling off", ")");
             }
             std::vector<float> pixels(size_t(width) * size_t(height) * 4);
             glReadPixels(0, 0, width, height, GL_RGBA, GL_FLOAT, pixels.data());

@@ -17,9 +17,10 @@ struct ViewerOptions {
     std::string screenshot;  // PNG to save, then exit; empty: interactive
     int frames = 3;          // frames drawn before the screenshot
     double exposureStops = 0;
-    std::string statistics;    // text for the panel (the solve's report, summarised)
-    int gatherPasses = 0;      // with `screenshot`: save the progressive final gather after this many passes
-    bool wholeWindow = false;  // with `screenshot`: the window as shown (panel included), not the picture alone
+    std::string statistics;        // text for the panel (the solve's report, summarised)
+    int gatherPasses = 0;          // with `screenshot`: save the progressive final gather after this many passes
+    bool wholeWindow = false;      // with `screenshot`: the window as shown (panel included), not the picture alone
+    bool occlusionCulling = true;  // cells hidden behind the scene's walls are not drawn (render/occlusion.h)
 };
 
 // Throws Error, pointing to the headless forms, when there is no display to open a window on.
