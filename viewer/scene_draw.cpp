@@ -550,13 +550,17 @@ void SceneDraw::drawAll(const Eigen::Matrix4f& viewProjection, const Vec3& eye, 
         for (const auto& [distance, k] : order)  // nearest first: one hidden behind those before adds nothing
             if (!occlusion->hidden(s.occluderBoxes[k])) occlusion->occlude(s.occluders[k]);
     }
-    s.cellsInView = shown.size(), s.cellsDrawn = 0;
+    // The cells drawn, nearest first, in one call.
+    std::vector<GLsizei> counts;
+    std::vector<const void*> firsts;
     for (const auto& [distance, c] : shown) {
         if (occlusion && occlusion->hidden(c->box.cast<double>())) continue;
-        ++s.cellsDrawn;
-        glDrawElements(GL_TRIANGLES, c->count, GL_UNSIGNED_INT,
-                       reinterpret_cast<const void*>(size_t(c->first) * sizeof(unsigned)));
+        counts.push_back(c->count);
+        firsts.push_back(reinterpret_cast<const void*>(size_t(c->first) * sizeof(unsigned)));
     }
+    s.cellsInView = shown.size(), s.cellsDrawn = counts.size();
+    if (!counts.empty())
+        glMultiDrawElements(GL_TRIANGLES, counts.data(), GL_UNSIGNED_INT, firsts.data(), GLsizei(counts.size()));
     if (!s.textured.empty()) {
         const GLuint p = s.texturedProgram;
         glUseProgram(p);
