@@ -924,8 +924,12 @@ int main(int argc, char** argv) {
         ->check(inRange(1, 1 << 20));
     viewCmd->add_flag("--screenshot-window", viewer.wholeWindow,
                       "With --screenshot: save the window as shown, panel included");
-    viewCmd->add_flag("!--no-occlusion-culling", viewer.occlusionCulling,
-                      "Draw every cell of the scene in view, hidden or not (to check that culling changes nothing)");
+    viewCmd
+        ->add_option("--occlusion-culling", viewer.occlusionCulling,
+                     "Leave out what the scene's walls hide: auto (in scenes of more than 20,000 triangles, where "
+                     "it pays), on, or off (to check that it changes nothing)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "on", "off"}));
     addSolveOptions(viewCmd, viewSolve);
 
     bench::BenchOptions benchOptions;

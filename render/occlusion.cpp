@@ -46,15 +46,17 @@ OcclusionBuffer::OcclusionBuffer(const Eigen::Matrix4d& viewProjection, int widt
       rows_((height + kTile - 1) / kTile),
       mask_(size_t(columns_) * size_t(rows_), 0),
       depth_(mask_.size(), 0) {
-    // Centres past the picture's edge are covered from the start: nothing is seen there.
-    for (int j = 0; j < rows_; ++j)
-        for (int i = 0; i < columns_; ++i) {
-            uint64_t outside = 0;
-            for (int y = 0; y < kTile; ++y)
-                for (int x = 0; x < kTile; ++x)
-                    if (kTile * i + x >= width_ || kTile * j + y >= height_) outside |= uint64_t(1) << (kTile * y + x);
-            mask_[size_t(j) * size_t(columns_) + size_t(i)] = outside;
-        }
+    // Centres past the picture's edge are covered from the start: nothing is seen there (tiles of
+    // the last column and row only).
+    const auto outside = [&](int i, int j) {
+        uint64_t m = 0;
+        for (int y = 0; y < kTile; ++y)
+            for (int x = 0; x < kTile; ++x)
+                if (kTile * i + x >= width_ || kTile * j + y >= height_) m |= uint64_t(1) << (kTile * y + x);
+        mask_[size_t(j) * size_t(columns_) + size_t(i)] = m;
+    };
+    for (int j = 0; j < rows_; ++j) outside(columns_ - 1, j);
+    for (int i = 0; i < columns_; ++i) outside(i, rows_ - 1);
 }
 
 double OcclusionBuffer::nearest(const std::vector<Eigen::Vector3d>& polygon) const {

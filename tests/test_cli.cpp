@@ -752,8 +752,8 @@ TEST(Viewer, OcclusionCullingLeavesThePictureAsItWas) {
         std::ifstream in(out + "/" + name, std::ios::binary);
         return std::make_pair(r.output, std::string(std::istreambuf_iterator<char>(in), {}));
     };
-    const auto [culledLog, culled] = shot("culled.png", "");
-    const auto [allLog, all] = shot("all.png", "--no-occlusion-culling");
+    const auto [culledLog, culled] = shot("culled.png", "--occlusion-culling on");
+    const auto [allLog, all] = shot("all.png", "--occlusion-culling off");
     ASSERT_FALSE(culled.empty());
     EXPECT_TRUE(culled == all) << "the pictures differ";
     // "(D of the N cells in view drawn": fewer drawn with culling, all of them without.

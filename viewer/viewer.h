@@ -17,10 +17,12 @@ struct ViewerOptions {
     std::string screenshot;  // PNG to save, then exit; empty: interactive
     int frames = 3;          // frames drawn before the screenshot
     double exposureStops = 0;
-    std::string statistics;        // text for the panel (the solve's report, summarised)
-    int gatherPasses = 0;          // with `screenshot`: save the progressive final gather after this many passes
-    bool wholeWindow = false;      // with `screenshot`: the window as shown (panel included), not the picture alone
-    bool occlusionCulling = true;  // cells hidden behind the scene's walls are not drawn (render/occlusion.h)
+    std::string statistics;    // text for the panel (the solve's report, summarised)
+    int gatherPasses = 0;      // with `screenshot`: save the progressive final gather after this many passes
+    bool wholeWindow = false;  // with `screenshot`: the window as shown (panel included), not the picture alone
+    // Cells hidden behind the scene's walls are not drawn (render/occlusion.h): "auto" (in scenes of
+    // more than 20,000 triangles), "on" or "off".
+    std::string occlusionCulling = "auto";
 };
 
 // Throws Error, pointing to the headless forms, when there is no display to open a window on.
