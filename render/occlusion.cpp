@@ -97,24 +97,41 @@ void OcclusionBuffer::occlude(const std::vector<Eigen::Vector3d>& polygon) {
     const int i0 = tileOf(x0, columns_), i1 = tileOf(x1, columns_), j0 = tileOf(y0, rows_), j1 = tileOf(y1, rows_);
     double smallest = HUGE_VAL, nearW = HUGE_VAL;  // the least 1/w of the polygon, its nearest w
     for (size_t k = 0; k < n; ++k) smallest = std::min(smallest, s[k].z()), nearW = std::min(nearW, c[k].w());
-    const auto inside = [&](double x, double y) {
+    // Bit k: (x, y) is inside edge k (on the polygon's side of its line).
+    const auto insideEdges = [&](double x, double y) {
+        unsigned bits = 0;
         for (size_t k = 0; k < n; ++k) {
             const Eigen::Vector3d &a = s[k], &b = s[(k + 1) % n];
-            if (turn * ((b.x() - a.x()) * (y - a.y()) - (b.y() - a.y()) * (x - a.x())) < 0) return false;
+            if (turn * ((b.x() - a.x()) * (y - a.y()) - (b.y() - a.y()) * (x - a.x())) >= 0) bits |= 1u << k;
         }
-        return true;
+        return bits;
     };
+    const unsigned all = (1u << n) - 1;
+    // The tiles' corners, a row of them at a time (each corner shared by four tiles): inside or
+    // not, and 1/w there.
+    const size_t corners = size_t(i1 - i0 + 2);
+    std::vector<unsigned> insideBelow(corners), insideAbove(corners);
+    std::vector<double> invBelow(corners), invAbove(corners);
+    const auto cornerRow = [&](int j, std::vector<unsigned>& in, std::vector<double>& inv) {
+        for (size_t k = 0; k < corners; ++k) {
+            const double x = kTile * (i0 + int(k)), y = kTile * j;
+            in[k] = insideEdges(x, y), inv[k] = invW(x, y);
+        }
+    };
+    cornerRow(j0, insideBelow, invBelow);
     for (int j = j0; j <= j1; ++j) {
+        cornerRow(j + 1, insideAbove, invAbove);
         for (int i = i0; i <= i1; ++i) {
-            const size_t t = size_t(j) * size_t(columns_) + size_t(i);
+            const size_t t = size_t(j) * size_t(columns_) + size_t(i), c0 = size_t(i - i0);
             // A tile covered whole nearer than any point of the polygon: nothing to add.
             if (mask_[t] == kFull && depth_[t] <= nearW) continue;
-            // Centres covered: every one if the tile's corners are inside (the polygon is convex),
-            // else in each row of the tile the run of x that every edge keeps.
-            const double tx = kTile * i, ty = kTile * j;
-            uint64_t m = 0;
-            if (inside(tx, ty) && inside(tx + kTile, ty) && inside(tx, ty + kTile) && inside(tx + kTile, ty + kTile))
-                m = kFull;
+            // Centres covered: none if the tile's four corners are outside one edge, every one if
+            // they are inside all (the polygon is convex), else in each row of the tile the run of x
+            // that every edge keeps.
+            const unsigned q0 = insideBelow[c0], q1 = insideBelow[c0 + 1], q2 = insideAbove[c0],
+                           q3 = insideAbove[c0 + 1];
+            if ((q0 | q1 | q2 | q3) != all) continue;
+            uint64_t m = (q0 & q1 & q2 & q3) == all ? kFull : 0;
             for (int y = 0; y < kTile && m != kFull; ++y) {
                 const double py = kTile * j + y + 0.5;
                 double lo = kTile * i + 0.5, hi = kTile * i + kTile - 0.5;
@@ -140,9 +157,7 @@ void OcclusionBuffer::occlude(const std::vector<Eigen::Vector3d>& polygon) {
             if (m == 0) continue;
             // The farthest point of the polygon over the tile: at a corner of the tile, the least 1/w
             // (clamped into the polygon's own range: the plane beyond the polygon does not count).
-            double least = HUGE_VAL;
-            for (const double x : {double(kTile * i), double(kTile * (i + 1))})
-                for (const double y : {double(kTile * j), double(kTile * (j + 1))}) least = std::min(least, invW(x, y));
+            double least = std::min({invBelow[c0], invBelow[c0 + 1], invAbove[c0], invAbove[c0 + 1]});
             least = std::max(least, smallest);
             if (!(least > 0)) continue;
             const double far = 1 / least;
@@ -156,6 +171,8 @@ void OcclusionBuffer::occlude(const std::vector<Eigen::Vector3d>& polygon) {
                 have |= m;
             }
         }
+        std::swap(insideBelow, insideAbove);
+        std::swap(invBelow, invAbove);
     }
 }
 
@@ -173,11 +190,12 @@ bool OcclusionBuffer::hidden(const Eigen::AlignedBox3d& box) const {
     const auto tileOf = [](double v, int count) {
         return int(std::clamp(std::floor(v / kTile), 0.0, double(count - 1)));
     };
+    // A margin far above float rounding of the drawn geometry (the viewer's vertices).
+    const double behind = nearest * (1 - 1e-5);
     for (int j = tileOf(y0, rows_); j <= tileOf(y1, rows_); ++j)
         for (int i = tileOf(x0, columns_); i <= tileOf(x1, columns_); ++i) {
             const size_t t = size_t(j) * size_t(columns_) + size_t(i);
-            // A margin far above float rounding of the drawn geometry (the viewer's vertices).
-            if (mask_[t] != kFull || !(depth_[t] < nearest * (1 - 1e-5))) return false;
+            if (mask_[t] != kFull || !(depth_[t] < behind)) return false;
         }
     return true;
 }
