@@ -59,14 +59,11 @@ OcclusionBuffer::OcclusionBuffer(const Eigen::Matrix4d& viewProjection, int widt
     for (int i = 0; i < columns_; ++i) outside(i, rows_ - 1);
 }
 
-double OcclusionBuffer::nearest(const std::vector<Eigen::Vector3d>& polygon) const {
-    const Clipped c = clipped(vp_, polygon);
-    double d = HUGE_VAL;
-    for (size_t k = 0; k < c.n; ++k) d = std::min(d, c.p[k].w());
-    return d;
+int OcclusionBuffer::tileOf(double v, int count) {
+    return int(std::clamp(std::floor(v / kTile), 0.0, double(count - 1)));
 }
 
-void OcclusionBuffer::occlude(const std::vector<Eigen::Vector3d>& polygon) {
+void OcclusionBuffer::occlude(const std::vector<Eigen::Vector3d>& polygon, bool frontOnly) {
     const Clipped clip = clipped(vp_, polygon);
     if (clip.n < 3) return;
     // Picture coordinates (x right, y up, pixel (x, y) the square [x, x + 1] x [y, y + 1], its centre
@@ -81,17 +78,16 @@ void OcclusionBuffer::occlude(const std::vector<Eigen::Vector3d>& polygon) {
     }
     Eigen::Vector3d normal = Eigen::Vector3d::Zero();
     for (size_t k = 1; k + 1 < n; ++k) normal += (s[k] - s[0]).cross(s[k + 1] - s[0]);
-    if (!(std::abs(normal.z()) > 1e-9)) return;  // edge-on: covers no centre for certain
-    const double turn = normal.z() > 0 ? 1 : -1;
-    const auto invW = [&](double x, double y) {
-        return s[0].z() - (normal.x() * (x - s[0].x()) + normal.y() * (y - s[0].y())) / normal.z();
-    };
     double x0 = HUGE_VAL, x1 = -HUGE_VAL, y0 = HUGE_VAL, y1 = -HUGE_VAL;
     for (size_t k = 0; k < n; ++k)
         x0 = std::min(x0, s[k].x()), x1 = std::max(x1, s[k].x()), y0 = std::min(y0, s[k].y()),
         y1 = std::max(y1, s[k].y());
-    const auto tileOf = [](double v, int count) {
-        return int(std::clamp(std::floor(v / kTile), 0.0, double(count - 1)));
+    // Edge-on (its area a negligible part of its box's): its plane of 1/w cannot be trusted.
+    if (!(std::abs(normal.z()) > 1e-9 * (x1 - x0) * (y1 - y0))) return;
+    if (frontOnly && normal.z() < 0) return;
+    const double turn = normal.z() > 0 ? 1 : -1;
+    const auto invW = [&](double x, double y) {
+        return s[0].z() - (normal.x() * (x - s[0].x()) + normal.y() * (y - s[0].y())) / normal.z();
     };
     if (x1 < 0 || y1 < 0 || x0 > width_ || y0 > height_) return;
     const int i0 = tileOf(x0, columns_), i1 = tileOf(x1, columns_), j0 = tileOf(y0, rows_), j1 = tileOf(y1, rows_);
@@ -165,7 +161,7 @@ void OcclusionBuffer::occlude(const std::vector<Eigen::Vector3d>& polygon) {
             double& depth = depth_[t];
             if (m == kFull && (have != kFull || far < depth)) {
                 have = kFull, depth = far;  // a whole tile nearer than what was there
-            } else if (have != kFull || far < depth) {
+            } else if (have != kFull) {
                 // Merged: the union of the centres, behind the farther of the two.
                 depth = have == 0 ? far : std::max(depth, far);
                 have |= m;
@@ -187,29 +183,16 @@ bool OcclusionBuffer::hidden(const Eigen::AlignedBox3d& box) const {
         x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
     }
     if (x1 < 0 || y1 < 0 || x0 > width_ || y0 > height_) return true;  // out of the picture
-    const auto tileOf = [](double v, int count) {
-        return int(std::clamp(std::floor(v / kTile), 0.0, double(count - 1)));
-    };
-    // A margin far above float rounding of the drawn geometry (the viewer's vertices).
-    const double behind = nearest * (1 - 1e-5);
+    // A margin above the depth buffer's resolution where the viewer draws (24 bits from a near plane
+    // at a thousandth of the scene's size: 6e-5 of the depth at the scene's size away) and above the
+    // polygon offset's: surfaces nearer together than that may show through each other in OpenGL.
+    const double behind = nearest * (1 - 1e-3);
     for (int j = tileOf(y0, rows_); j <= tileOf(y1, rows_); ++j)
         for (int i = tileOf(x0, columns_); i <= tileOf(x1, columns_); ++i) {
             const size_t t = size_t(j) * size_t(columns_) + size_t(i);
             if (mask_[t] != kFull || !(depth_[t] < behind)) return false;
         }
     return true;
-}
-
-size_t OcclusionBuffer::covered() const {
-    size_t n = 0;
-    for (int j = 0; j < rows_; ++j)
-        for (int i = 0; i < columns_; ++i)
-            for (int y = 0; y < kTile; ++y)
-                for (int x = 0; x < kTile; ++x)
-                    if (kTile * i + x < width_ && kTile * j + y < height_ &&
-                        ((mask_[size_t(j) * size_t(columns_) + size_t(i)] >> (kTile * y + x)) & 1))
-                        ++n;
-    return n;
 }
 
 }  // namespace penumbra

@@ -22,18 +22,19 @@ class OcclusionBuffer {
 public:
     // A buffer over a width x height picture seen through `viewProjection` (OpenGL's clip space).
     OcclusionBuffer(const Eigen::Matrix4d& viewProjection, int width, int height);
-    // The nearest depth (clip-space w) of a polygon in front of the near plane, or infinity if none
-    // of it is: draw the nearest first, so that a far polygon meets a full pixel and stops.
-    double nearest(const std::vector<Eigen::Vector3d>& polygon) const;
-    // Draws a planar convex polygon (world space, 3 or more corners in order).
-    void occlude(const std::vector<Eigen::Vector3d>& polygon);
-    // True if no pixel centre of the picture can show a point of `box` in front of the polygons drawn.
+    // Draws a planar convex polygon (world space, 3 to 6 corners in order); with `frontOnly`, only
+    // if its corners run counter-clockwise in the picture (OpenGL's front face), as where back faces
+    // are culled a polygon seen from behind is not drawn and hides nothing. Draw the nearest first:
+    // a tile covered whole nearer than a polygon stops it.
+    void occlude(const std::vector<Eigen::Vector3d>& polygon, bool frontOnly = false);
+    // True if no pixel centre of the picture can show a point of `box` in front of the polygons drawn
+    // (by more than a thousandth of its depth: OpenGL's depth test cannot tell surfaces closer apart).
     bool hidden(const Eigen::AlignedBox3d& box) const;
-    // Pixels of the picture whose centres some polygon covers.
-    size_t covered() const;
 
 private:
     static constexpr int kTile = 8;  // a buffer pixel is kTile x kTile pixels of the picture
+    // The tile holding picture coordinate v (x or y, in pixels), within [0, count).
+    static int tileOf(double v, int count);
     Eigen::Matrix4d vp_;
     int width_, height_, columns_, rows_;
     std::vector<uint64_t> mask_;  // per buffer pixel: bit 8 y + x for the centre of picture pixel (x, y) in it

@@ -600,9 +600,9 @@ using Polygon = std::vector<Vec3>;
 Polygon quad(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) { return {a, b, c, d}; }
 
 bool hiddenBehind(const std::vector<Polygon>& occluders, const Eigen::AlignedBox3d& box, const Eigen::Matrix4d& vp,
-                  int w, int h) {
+                  int w, int h, bool frontOnly = false) {
     OcclusionBuffer buffer(vp, w, h);
-    for (const Polygon& p : occluders) buffer.occlude(p);
+    for (const Polygon& p : occluders) buffer.occlude(p, frontOnly);
     return buffer.hidden(box);
 }
 
@@ -611,7 +611,8 @@ bool hiddenBehind(const std::vector<Polygon>& occluders, const Eigen::AlignedBox
 // The viewer's occlusion culling (render/occlusion.h). A wall 5 m ahead hides a box behind it, also
 // when the wall is two quads meeting at a seam, or a wall and a floor meeting at a crease (every
 // pixel centre on the join is covered by one or the other); it hides no box in front of it, none
-// that shows past its edge, none that reaches in front of the near plane.
+// that shows past its edge, none that reaches in front of the near plane, none within a thousandth
+// of its depth behind it; seen from behind it hides nothing where back faces are culled.
 TEST(Occlusion, AWallHidesWhatIsBehindItAndNothingElse) {
     const Eigen::Matrix4d vp = glViewProjection(Vec3(0, 0, 0), Vec3(0, 0, -1), 60, 4.0 / 3);
     const int w = 160, h = 120;
@@ -619,6 +620,15 @@ TEST(Occlusion, AWallHidesWhatIsBehindItAndNothingElse) {
     const Eigen::AlignedBox3d behind(Vec3(-1, -1, -8), Vec3(1, 1, -7));
     EXPECT_TRUE(hiddenBehind({wall}, behind, vp, w, h));
     EXPECT_FALSE(hiddenBehind({}, behind, vp, w, h));
+    // Its corners run counter-clockwise seen from the eye: a front face. Reversed, it is a back
+    // face, which hides nothing where back faces are culled.
+    EXPECT_TRUE(hiddenBehind({wall}, behind, vp, w, h, true));
+    const Polygon back(wall.rbegin(), wall.rend());
+    EXPECT_TRUE(hiddenBehind({back}, behind, vp, w, h));
+    EXPECT_FALSE(hiddenBehind({back}, behind, vp, w, h, true));
+    // A box a hair behind the wall (a poster's width) is not taken as hidden: OpenGL's depth test
+    // may not tell them apart.
+    EXPECT_FALSE(hiddenBehind({wall}, Eigen::AlignedBox3d(Vec3(-1, -1, -5.002), Vec3(1, 1, -5.001)), vp, w, h));
     EXPECT_FALSE(hiddenBehind({wall}, Eigen::AlignedBox3d(Vec3(-1, -1, -3), Vec3(1, 1, -2)), vp, w, h));
     // Touching the wall from behind: its nearest point is on the wall, not behind it.
     EXPECT_FALSE(hiddenBehind({wall}, Eigen::AlignedBox3d(Vec3(-1, -1, -8), Vec3(1, 1, -5)), vp, w, h));

@@ -302,6 +302,14 @@ SceneDraw::SceneDraw(const Scene& scene, const std::vector<float>& vertices, con
     for (const SceneObject& o : scene.objects) {
         if (scene.materialOf(o).type != MaterialType::Diffuse) continue;
         if (o.type != ShapeType::Quad && o.type != ShapeType::Triangle) continue;
+        // A quad a little off its plane (the scene file allows 1%) is drawn bent, not as the plane
+        // the buffer would take: only one flat to a millionth of its size hides anything.
+        if (o.type == ShapeType::Quad) {
+            const std::vector<Vec3>& v = o.vertices;
+            const Vec3 n = (v[2] - v[0]).cross(v[3] - v[1]).normalized();
+            const double twist = std::abs(n.dot(v[1] - v[0])) + std::abs(n.dot(v[3] - v[0]));
+            if (!(twist <= 1e-6 * std::max((v[2] - v[0]).norm(), (v[3] - v[1]).norm()))) continue;
+        }
         s.occluders.push_back(o.vertices);
         s.occluderBoxes.emplace_back();
         for (const Vec3& v : o.vertices) s.occluderBoxes.back().extend(v);
@@ -536,19 +544,11 @@ void SceneDraw::drawAll(const Eigen::Matrix4f& viewProjection, const Vec3& eye, 
                     far[c] = p[c] > 0 ? s.occluderBoxes[k].max()[c] : s.occluderBoxes[k].min()[c];
                 inside = inside && p.head<3>().cast<double>().dot(far) + double(p[3]) >= 0;
             }
-            // Where back faces are culled (double-sided materials), a polygon seen from behind is
-            // not drawn, and hides nothing.
-            if (s.cullBackFaces) {
-                const std::vector<Eigen::Vector3d>& v = s.occluders[k];
-                Vec3 normal = Vec3::Zero();  // Newell's
-                for (size_t i = 0; i < v.size(); ++i) normal += v[i].cross(v[(i + 1) % v.size()]);
-                inside = inside && (from64 - v[0]).dot(normal) > 0;
-            }
             if (inside) order.emplace_back(s.occluderBoxes[k].squaredExteriorDistance(from64), k);
         }
         std::sort(order.begin(), order.end());
         for (const auto& [distance, k] : order)  // nearest first: one hidden behind those before adds nothing
-            if (!occlusion->hidden(s.occluderBoxes[k])) occlusion->occlude(s.occluders[k]);
+            if (!occlusion->hidden(s.occluderBoxes[k])) occlusion->occlude(s.occluders[k], s.cullBackFaces);
     }
     // The cells drawn, nearest first, in one call.
     std::vector<GLsizei> counts;
