@@ -3,7 +3,8 @@
 # view against the solve and a final gather, in one run on this machine:
 #  - each scene solved with the defaults (kept in DIR/solve-SCENE; delete to solve again);
 #  - `penumbra view` at 1280 x 720, 120 frames from the scene's camera: frames per second after the
-#    first frame, and the scene alone drawn (ten times, each finished);
+#    first frame, and the scene alone drawn (ten times, each finished); with the defaults, then
+#    with occlusion culling forced on (and the cells it drew of those in view) and off;
 #  - for cornell-glass at 256 x 256: the viewer's frame and draw, the headless radiosity view (an
 #    orbit of 36 views, 4 and 1 spp: per view), and a default final gather, against the solve's
 #    stages.
@@ -26,9 +27,10 @@ solved() {  # the scene's default solve, made once
   [ -f "$dir/solve-$scene/solution.bin" ] || "$exe" solve "scenes/$scene.json" --out "$dir/solve-$scene" --quiet
   echo "$dir/solve-$scene"
 }
-view() {  # scene, WxH: the viewer's log line with its frames per second
+view() {  # scene, WxH, [frames, occlusion culling]: the viewer's log line with its frames per second
   "$(command -v xvfb-run)" -a -s "-screen 0 1280x720x24" "$exe" view "scenes/$1.json" --solution "$(solved "$1")" \
-    --resolution "$2" --screenshot "$dir/$1-$2.png" --frames "${3:-120}" 2>&1 | grep 'frames/s' || true
+    --resolution "$2" --screenshot "$dir/$1-$2-${4:-auto}.png" --frames "${3:-120}" --occlusion-culling "${4:-auto}" \
+    2>&1 | grep 'frames/s' || true
 }
 
 gl=$(xvfb-run -a "$exe" view scenes/cornell-box.json --solution "$(solved cornell-box)" --resolution 64x64 \
@@ -37,7 +39,8 @@ rows=()
 for scene in "${scenes[@]}"; do
   echo "viewer: $scene" >&2
   solved "$scene" > /dev/null
-  rows+=("$scene|$(view "$scene" 1280x720)")
+  # The default (occlusion culling above 20,000 triangles), then culling forced on and off.
+  rows+=("$scene|$(view "$scene" 1280x720)|$(view "$scene" 1280x720 120 on)|$(view "$scene" 1280x720 120 off)")
 done
 
 echo "viewer: cornell-glass at 256 x 256" >&2
@@ -66,10 +69,14 @@ views = [('viewer, a frame', 1e3 / fps(small)), ('viewer, the scene alone', alon
          ('headless radiosity view, 1 spp (orbit of 36, files written)', 1e3 * number(r'in ([0-9.]+) s$', orbit1) / 36)]
 out = [f'# The viewer under llvmpipe, and the cost of a new view (bench/viewer.sh)', '',
        f'Machine: {machine}; {gl or "OpenGL unknown"}; Xvfb.', '',
-       '| scene (1280 x 720, 120 frames) | frames/s | the scene alone |', '|---|---|---|']
+       '| scene (1280 x 720, 120 frames) | frames/s | the scene alone | occlusion culling on: frames/s, cells drawn | off: frames/s |',
+       '|---|---|---|---|---|']
+cells = lambda line: re.search(r'\(([0-9]+) of the ([0-9]+) cells', line)
 for row in rows:
-    scene, line = row.split('|', 1)
-    out.append(f'| {scene} | {fps(line):.1f} | {alone(line):.1f} ms |')
+    scene, line, on, off = row.split('|', 3)
+    drawn = cells(on)
+    shown = f'{drawn.group(1)} of {drawn.group(2)}' if drawn else '?'
+    out.append(f'| {scene} | {fps(line):.1f} | {alone(line):.1f} ms | {fps(on):.1f}, {shown} | {fps(off):.1f} |')
 out += ['', f'cornell-glass at 256 x 256: the solve {solve:.3f} s (its stages), a default final gather {fg:.3f} s.', '',
         '| a new view | ms | of the solve | of a final gather |', '|---|---|---|---|']
 for name, ms in views:
