@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <map>
+#include <type_traits>
 
 #include "core/error.h"
 #include "core/log.h"
@@ -517,17 +518,20 @@ void SceneDraw::drawAll(const Eigen::Matrix4f& viewProjection, const Vec3& eye, 
         planes[size_t(2 * r)] = viewProjection.row(3).transpose() + viewProjection.row(r).transpose();
         planes[size_t(2 * r + 1)] = viewProjection.row(3).transpose() - viewProjection.row(r).transpose();
     }
+    // Whether a box (a cell's, in floats, or an occluder's, in doubles) is inside all six planes.
+    const auto inView = [&](const auto& box) {
+        using S = typename std::decay_t<decltype(box)>::Scalar;
+        for (const Eigen::Vector4f& p : planes) {
+            Eigen::Matrix<S, 3, 1> far;
+            for (int k = 0; k < 3; ++k) far[k] = p[k] > 0 ? box.max()[k] : box.min()[k];
+            if (!(p.head<3>().template cast<S>().dot(far) + S(p[3]) >= 0)) return false;
+        }
+        return true;
+    };
     std::vector<std::pair<float, const State::Cell*>> shown;
     const Eigen::Vector3f from = eye.cast<float>();
-    for (const State::Cell& c : s.cells) {
-        bool inside = true;
-        for (const Eigen::Vector4f& p : planes) {
-            Eigen::Vector3f far;
-            for (int k = 0; k < 3; ++k) far[k] = p[k] > 0 ? c.box.max()[k] : c.box.min()[k];
-            inside = inside && p.head<3>().dot(far) + p[3] >= 0;
-        }
-        if (inside) shown.emplace_back(c.box.squaredExteriorDistance(from), &c);
-    }
+    for (const State::Cell& c : s.cells)
+        if (inView(c.box)) shown.emplace_back(c.box.squaredExteriorDistance(from), &c);
     std::sort(shown.begin(), shown.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
     std::unique_ptr<OcclusionBuffer> occlusion;
     if (s.occlusionCulling && !s.occluders.empty()) {
@@ -535,17 +539,8 @@ void SceneDraw::drawAll(const Eigen::Matrix4f& viewProjection, const Vec3& eye, 
         glGetIntegerv(GL_VIEWPORT, viewport);
         occlusion = std::make_unique<OcclusionBuffer>(viewProjection.cast<double>(), viewport[2], viewport[3]);
         std::vector<std::pair<double, size_t>> order;
-        const Vec3 from64 = eye;
-        for (size_t k = 0; k < s.occluders.size(); ++k) {
-            bool inside = true;
-            for (const Eigen::Vector4f& p : planes) {
-                Vec3 far;
-                for (int c = 0; c < 3; ++c)
-                    far[c] = p[c] > 0 ? s.occluderBoxes[k].max()[c] : s.occluderBoxes[k].min()[c];
-                inside = inside && p.head<3>().cast<double>().dot(far) + double(p[3]) >= 0;
-            }
-            if (inside) order.emplace_back(s.occluderBoxes[k].squaredExteriorDistance(from64), k);
-        }
+        for (size_t k = 0; k < s.occluders.size(); ++k)
+            if (inView(s.occluderBoxes[k])) order.emplace_back(s.occluderBoxes[k].squaredExteriorDistance(eye), k);
         std::sort(order.begin(), order.end());
         for (const auto& [distance, k] : order)  // nearest first: one hidden behind those before adds nothing
             if (!occlusion->hidden(s.occluderBoxes[k])) occlusion->occlude(s.occluders[k], s.cullBackFaces);
