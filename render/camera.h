@@ -22,6 +22,16 @@ public:
         const double sy = (1 - 2 * py / c_.height) * tanHalf_;
         return (forward_ + sx * right_ + sy * up_).normalized();
     }
+    // The direction through (px, py) before it is normalised, corner + px perX + py perY: linear in
+    // the image position (as `direction` makes it, but for rounding); `forward` is the view axis.
+    struct ImagePlane {
+        Vec3 corner, perX, perY, forward;
+    };
+    ImagePlane imagePlane() const {
+        const double aspect = double(c_.width) / c_.height;
+        return {forward_ - tanHalf_ * aspect * right_ + tanHalf_ * up_, (2 * tanHalf_ * aspect / c_.width) * right_,
+                (-2 * tanHalf_ / c_.height) * up_, forward_};
+    }
     // Where the line from the eye to `p` crosses the image, in pixels (continuous, as `direction`
     // takes them), and the cosine of its angle to the view axis; false if `p` is not in front of
     // the eye within the image.

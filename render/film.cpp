@@ -30,6 +30,10 @@ constexpr float kLampContrast = 8;
 struct PixelSum {
     Rgb sum = Rgb::Zero();
     double low = HUGE_VAL, high = -HUGE_VAL;
+    void add(const Rgb& L) {
+        sum += L;
+        low = std::min(low, L.sum()), high = std::max(high, L.sum());
+    }
 };
 
 // The largest spread over mean (contrast) of pixel (x, y) and its eight neighbours: a pixel whose
@@ -56,13 +60,10 @@ constexpr int64_t kBand = 4;
 
 int64_t bandsOf(int height) { return (height + kBand - 1) / kBand; }
 
-// Calls row(y) for every row of every band this rank takes; returns those bands.
-std::vector<int64_t> renderBands(int height, Progress& progress, const std::function<void(int64_t)>& row) {
+// Calls rows(y0, y1) for the rows [y0, y1) of every band this rank takes; returns those bands.
+std::vector<int64_t> renderBands(int height, Progress& progress, const std::function<void(int64_t, int64_t)>& rows) {
     return cluster::forEachQueued(
-        bandsOf(height),
-        [&](int64_t band) {
-            for (int64_t y = band * kBand; y < std::min<int64_t>(height, (band + 1) * kBand); ++y) row(y);
-        },
+        bandsOf(height), [&](int64_t band) { rows(band * kBand, std::min<int64_t>(height, (band + 1) * kBand)); },
         [&](int64_t bands) { progress.update(bands); }, prepareTracingThread);
 }
 
@@ -117,18 +118,20 @@ Image renderPixels(const Camera& camera, int samplesPerPixel, uint64_t seed, con
     Image image(camera.width, camera.height);
     const int side = stratumSide(samplesPerPixel);
     Progress progress(title, bandsOf(camera.height));
-    const std::vector<int64_t> mine = renderBands(camera.height, progress, [&](int64_t y) {
-        for (int x = 0; x < camera.width; ++x) {
-            Rng rng = pairRng(seed, Stream::Pixels, uint64_t(y), uint64_t(x));
-            Rgb sum = Rgb::Zero();
-            for (int s = 0; s < side * side; ++s) {
-                const double px = x + ((s % side) + rng.uniform()) / side;
-                const double py = double(y) + ((s / side) + rng.uniform()) / side;
-                sum += radiance(cam.origin(), cam.direction(px, py), rng);
+    const std::vector<int64_t> mine = renderBands(camera.height, progress, [&](int64_t y0, int64_t y1) {
+        for (int64_t y = y0; y < y1; ++y) {
+            for (int x = 0; x < camera.width; ++x) {
+                Rng rng = pairRng(seed, Stream::Pixels, uint64_t(y), uint64_t(x));
+                Rgb sum = Rgb::Zero();
+                for (int s = 0; s < side * side; ++s) {
+                    const double px = x + ((s % side) + rng.uniform()) / side;
+                    const double py = double(y) + ((s / side) + rng.uniform()) / side;
+                    sum += radiance(cam.origin(), cam.direction(px, py), rng);
+                }
+                image.set(x, int(y), sum / (side * side));
             }
-            image.set(x, int(y), sum / (side * side));
+            g_cameraSamples.add(uint64_t(camera.width) * uint64_t(side * side));
         }
-        g_cameraSamples.add(uint64_t(camera.width) * uint64_t(side * side));
     });
     progress.done();
     std::vector<float> none;
@@ -151,41 +154,89 @@ uint32_t mortonRank(uint32_t x, uint32_t y) {
     for (int b = 0; b < kTileBits; ++b) rank |= ((x >> b) & 1u) << (2 * b) | ((y >> b) & 1u) << (2 * b + 1);
     return rank;
 }
+
+// Where the first pass's samples come from: the seed of pixel (x, y)'s sets and the index of its first
+// sample; and where a sample lies.
+struct FirstPass {
+    FirstPass(uint64_t seed, int samples) : spp(samples), pixels(mixSeed(seed, uint64_t(Stream::Pixels))) {
+        while (stride < uint32_t(spp)) stride *= 2;
+    }
+    uint64_t seedOf(int x, int64_t y) const {
+        return mixSeed(pixels, uint64_t(y >> kTileBits), uint64_t(x >> kTileBits));
+    }
+    uint32_t first(int x, int64_t y) const { return mortonRank(uint32_t(x), uint32_t(y)) * stride; }
+    // Starts sample s of pixel (x, y) and returns its image position (dimensions 0-1).
+    Vec2 start(PixelSampler& sampler, int x, int64_t y, uint32_t index) const {
+        sampler.start(index);
+        const double px = x + sampler.uniform(), py = double(y) + sampler.uniform();
+        return Vec2(px, py);
+    }
+    int spp;
+    uint64_t pixels;
+    uint32_t stride = 1;  // 2^12 ranks x at most 2^20 samples fit the sets' 32-bit indices
+};
+
+// A pixel's samples in one pass: `count` of the sets seeded `seed`, from index `first`.
+struct PixelJob {
+    int x;
+    int64_t y;
+    uint64_t seed;
+    uint32_t first;
+    int count;
+};
 }  // namespace
 
 Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
-                          const SampledRadianceFn& radiance, bool edges) {
+                          const SampledRadianceFn& radiance, bool edges, const BatchRadianceFn& batch) {
     const PinholeCamera cam(camera);
     const int w = camera.width, h = camera.height;
     Image image(w, h);
-    const int spp = std::max(1, samplesPerPixel);
-    uint32_t stride = 1;  // 2^12 ranks x at most 2^20 samples fit the sets' 32-bit indices
-    while (stride < uint32_t(spp)) stride *= 2;
-    const uint64_t pixels = mixSeed(seed, uint64_t(Stream::Pixels));
-    // The samples [first, first + count) of pixel (x, y) from `sampler`, and their spread.
-    const auto sample = [&](PixelSampler& sampler, int x, int64_t y, uint32_t first, int count) {
-        PixelSum p;
-        for (int s = 0; s < count; ++s) {
-            sampler.start(first + uint32_t(s));
-            const double px = x + sampler.uniform(), py = double(y) + sampler.uniform();
-            sampler.skipTo(4);
-            const Rgb L = radiance(cam.origin(), cam.direction(px, py), sampler);
-            p.sum += L;
-            p.low = std::min(p.low, L.sum()), p.high = std::max(p.high, L.sum());
+    const FirstPass pass(seed, std::max(1, samplesPerPixel));
+    const int spp = pass.spp;
+    // Each job's samples and their spread: ray by ray through `radiance`, or all of them at once
+    // through `batch`.
+    const auto take = [&](const std::vector<PixelJob>& jobs) {
+        std::vector<PixelSum> sums(jobs.size());
+        if (!batch) {
+            for (size_t j = 0; j < jobs.size(); ++j) {
+                const PixelJob& job = jobs[j];
+                PixelSampler sampler(job.seed);
+                for (int s = 0; s < job.count; ++s) {
+                    const Vec2 at = pass.start(sampler, job.x, job.y, job.first + uint32_t(s));
+                    sampler.skipTo(4);
+                    sums[j].add(radiance(cam.origin(), cam.direction(at.x(), at.y()), sampler));
+                }
+            }
+            return sums;
         }
-        return p;
+        std::vector<CameraSample> samples;
+        for (const PixelJob& job : jobs) {
+            PixelSampler sampler(job.seed);
+            for (int s = 0; s < job.count; ++s)
+                samples.push_back({job.x, job.y, pass.start(sampler, job.x, job.y, job.first + uint32_t(s))});
+        }
+        std::vector<Rgb> L(samples.size());
+        batch(samples, L);
+        size_t k = 0;
+        for (size_t j = 0; j < jobs.size(); ++j)
+            for (int s = 0; s < jobs[j].count; ++s) sums[j].add(L[k++]);
+        return sums;
     };
     std::vector<float> contrast(edges ? size_t(w) * size_t(h) : 0, 0.0f);
     const int64_t bands = bandsOf(h);
     Progress progress(title, edges ? 2 * bands : bands);
-    std::vector<int64_t> mine = renderBands(h, progress, [&](int64_t y) {
-        for (int x = 0; x < w; ++x) {
-            PixelSampler sampler(mixSeed(pixels, uint64_t(y >> kTileBits), uint64_t(x >> kTileBits)));
-            const PixelSum p = sample(sampler, x, y, mortonRank(uint32_t(x), uint32_t(y)) * stride, spp);
-            if (edges) contrast[size_t(y) * size_t(w) + size_t(x)] = float((p.high - p.low) * spp / p.sum.sum());
-            image.set(x, int(y), p.sum / spp);
+    std::vector<int64_t> mine = renderBands(h, progress, [&](int64_t y0, int64_t y1) {
+        std::vector<PixelJob> jobs;
+        for (int64_t y = y0; y < y1; ++y)
+            for (int x = 0; x < w; ++x) jobs.push_back({x, y, pass.seedOf(x, y), pass.first(x, y), spp});
+        const std::vector<PixelSum> sums = take(jobs);
+        for (size_t j = 0; j < jobs.size(); ++j) {
+            const PixelSum& p = sums[j];
+            const size_t at = size_t(jobs[j].y) * size_t(w) + size_t(jobs[j].x);
+            if (edges) contrast[at] = float((p.high - p.low) * spp / p.sum.sum());
+            image.set(jobs[j].x, int(jobs[j].y), p.sum / spp);
         }
-        g_cameraSamples.add(uint64_t(w) * uint64_t(spp));
+        g_cameraSamples.add(uint64_t(jobs.size()) * uint64_t(spp));
     });
     // The edge pass reads the neighbours' values and spreads, which other ranks may have made.
     shareBands(image, contrast, mine);
@@ -209,22 +260,28 @@ Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t se
         // Edge pixels take four times their samples again (a lamp's edge at least 64: 128 cost
         // cornell-glass's view at one sample per pixel 1.6x the camera rays of 64 for 0.93% against
         // 0.93%, the Cornell box 0.79% against 0.80%), from sets of their own.
-        const int again = 4 * int(stride), lamp = std::max(again, 64);
+        const int again = 4 * int(pass.stride), lamp = std::max(again, 64);
         const uint64_t edgeSeed = mixSeed(seed, uint64_t(Stream::EdgePixels));
-        mine = renderBands(h, progress, [&](int64_t y) {
-            uint64_t count = 0, samples = 0;
-            for (int x = 0; x < w; ++x) {
-                const float most = edgeContrast(contrast, w, h, x, y);
-                if (!(most > 1)) continue;
-                const int more = most > kLampContrast ? lamp : again;
-                PixelSampler sampler(mixSeed(edgeSeed, uint64_t(y), uint64_t(x)));
-                const Rgb sum = image.at(x, int(y)) * spp + sample(sampler, x, y, 0, more).sum;
-                image.set(x, int(y), sum / (spp + more));
-                ++count;
-                samples += uint64_t(more);
+        mine = renderBands(h, progress, [&](int64_t y0, int64_t y1) {
+            std::vector<PixelJob> jobs;
+            uint64_t samples = 0;
+            for (int64_t y = y0; y < y1; ++y)
+                for (int x = 0; x < w; ++x) {
+                    // One sample a pixel: its contrast is already its neighbourhood's (above), and
+                    // says whether it is an edge; whether a lamp's, its neighbours' say too.
+                    const float most = edgeContrast(contrast, w, h, x, y);
+                    if (!((spp == 1 ? contrast[size_t(y) * size_t(w) + size_t(x)] : most) > 1)) continue;
+                    const int more = most > kLampContrast ? lamp : again;
+                    jobs.push_back({x, y, mixSeed(edgeSeed, uint64_t(y), uint64_t(x)), 0, more});
+                    samples += uint64_t(more);
+                }
+            const std::vector<PixelSum> sums = take(jobs);
+            for (size_t j = 0; j < jobs.size(); ++j) {
+                const int x = jobs[j].x, y = int(jobs[j].y);
+                image.set(x, y, (image.at(x, y) * spp + sums[j].sum) / (spp + jobs[j].count));
             }
             g_cameraSamples.add(samples);
-            g_edgePixels.add(count);
+            g_edgePixels.add(jobs.size());
         });
         std::vector<float> none;
         shareBands(image, none, mine);

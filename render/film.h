@@ -33,7 +33,16 @@ using SampledRadianceFn = std::function<Rgb(const Vec3& origin, const Vec3& dir,
 // `edges`: a pixel whose samples differ by more than their mean (at one sample per pixel: whose
 // neighbourhood's values do), and its eight neighbours, take four times their samples again, at
 // least 64 beside a lamp's edge (a lamp is fifty times brighter than the ceiling around it).
+// `batch`, if given, takes each band's samples of each pass at once instead of `radiance`: for a view
+// that finds what they see without rays (VisibilityBuffer).
+struct CameraSample {
+    int x;
+    int64_t y;  // the pixel
+    Vec2 at;    // the image position in it (pixels, continuous)
+};
+using BatchRadianceFn = std::function<void(const std::vector<CameraSample>& samples, std::vector<Rgb>& radiance)>;
 Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t seed, const char* title,
-                          const SampledRadianceFn& radiance, bool edges = false);
+                          const SampledRadianceFn& radiance, bool edges = false,
+                          const BatchRadianceFn& batch = nullptr);
 
 }  // namespace penumbra

@@ -29,10 +29,9 @@ std::vector<Image> renderPathViews(const RenderInputs& in, const std::vector<Cam
 }
 
 std::vector<Image> renderRadiosityViews(const RenderInputs& in, const std::vector<Camera>& cameras, int spp) {
-    const std::shared_ptr<const RayScene> rays = raysOf(in);
+    const RadiosityView view(in.scene, in.patches, raysOf(in), in.corners, {spp, in.seed});
     std::vector<Image> images;
-    for (const Camera& camera : cameras)
-        images.push_back(renderRadiosityView(in.scene, camera, in.patches, rays, in.corners, {spp, in.seed}));
+    for (const Camera& camera : cameras) images.push_back(view.render(camera));
     return images;
 }
 

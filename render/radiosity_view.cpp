@@ -1,6 +1,8 @@
 #include "render/radiosity_view.h"
 
+#include "render/camera.h"
 #include "render/film.h"
+#include "render/visibility_buffer.h"
 #include "solver/tracer.h"
 
 namespace penumbra {
@@ -87,26 +89,67 @@ Rgb throughSpecular(const SceneTracer& tracer, const std::vector<std::array<Rgb,
 
 }  // namespace
 
-Image renderRadiosityView(const Scene& scene, const Camera& camera, const PatchSet& patches,
-                          const std::shared_ptr<const RayScene>& rays, const std::vector<std::array<Rgb, 4>>& corners,
-                          const ViewSettings& settings) {
+struct RadiosityView::Shared {
+    const Scene& scene;
+    const PatchSet& patches;
+    std::shared_ptr<const RayScene> rays;
+    const CornerValues& corners;
+    ViewSettings settings;
     // Mirrors and glass are followed by the tracer, which knows the materials (and the exact spheres).
-    const std::unique_ptr<const SceneTracer> tracer =
+    std::unique_ptr<const SceneTracer> tracer;
+    TextureDetail detail;
+    std::vector<char> diffuse;  // per patch: its material diffuse
+};
+
+RadiosityView::RadiosityView(const Scene& scene, const PatchSet& patches, std::shared_ptr<const RayScene> rays,
+                             const CornerValues& corners, const ViewSettings& settings) {
+    std::unique_ptr<const SceneTracer> tracer =
         scene.hasSpecular() ? std::make_unique<const SceneTracer>(scene, patches, rays) : nullptr;
-    const TextureDetail detail(scene, patches, corners);
-    return renderPixelsSampled(
-        camera, settings.samplesPerPixel, settings.seed, "view",
-        [&](const Vec3& origin, const Vec3& dir, PixelSampler&) -> Rgb {
-            const Hit hit = rays->intersect(origin, dir);
-            if (hit.patch < 0) return Rgb::Zero();
-            const size_t p = size_t(hit.patch);
-            const Material& m = scene.materialOf(scene.objects[size_t(patches.object[p])]);
-            if (m.type != MaterialType::Diffuse)
-                return tracer ? throughSpecular(*tracer, corners, detail, origin, dir, settings, 0) : Rgb::Zero();
-            if (patches.normal[p].dot(dir) >= 0) return Rgb::Zero();  // back face: black
-            return detail(p, hit.u, hit.v, interpolateAt(patches, p, hit.u, hit.v, corners[p]) * kInvPi);
-        },
-        true);
+    std::vector<char> diffuse(patches.size());
+    for (size_t p = 0; p < patches.size(); ++p)
+        diffuse[p] = scene.materialOf(scene.objects[size_t(patches.object[p])]).type == MaterialType::Diffuse;
+    shared_.reset(new Shared{scene, patches, std::move(rays), corners, settings, std::move(tracer),
+                             TextureDetail(scene, patches, corners), std::move(diffuse)});
+}
+
+RadiosityView::~RadiosityView() = default;
+
+Image RadiosityView::render(const Camera& camera) const {
+    const Shared& s = *shared_;
+    const auto diffuse = [&](size_t p, double u, double v, const Vec3& dir) -> Rgb {
+        if (s.patches.normal[p].dot(dir) >= 0) return Rgb::Zero();  // back face: black
+        return s.detail(p, u, v, interpolateAt(s.patches, p, u, v, s.corners[p]) * kInvPi);
+    };
+    const SampledRadianceFn radiance = [&](const Vec3& origin, const Vec3& dir, PixelSampler&) -> Rgb {
+        // With mirrors or glass one ray of the tracer's (the exact spheres) serves every sample.
+        if (s.tracer) return throughSpecular(*s.tracer, s.corners, s.detail, origin, dir, s.settings, 0);
+        const Hit hit = s.rays->intersect(origin, dir);
+        return hit.patch < 0 ? Rgb::Zero() : diffuse(size_t(hit.patch), hit.u, hit.v, dir);
+    };
+    // The camera's samples see their first surfaces without rays (a pinhole camera outside the exact
+    // spheres); rays remain for what mirrors and glass show.
+    if (VisibilityBuffer::eyeInsideSphere(*s.rays, camera))
+        return renderPixelsSampled(camera, s.settings.samplesPerPixel, s.settings.seed, "view", radiance, true);
+    const VisibilityBuffer buffer(s.patches, *s.rays, camera);
+    const PinholeCamera cam(camera);
+    const BatchRadianceFn batch = [&](const std::vector<CameraSample>& samples, std::vector<Rgb>& L) {
+        const std::vector<BufferHit> hits = buffer.firstHits(samples);
+        for (size_t k = 0; k < samples.size(); ++k) {
+            const BufferHit& hit = hits[k];
+            const Vec3 dir = cam.direction(samples[k].at.x(), samples[k].at.y());
+            if (hit.sphere >= 0 || (hit.patch >= 0 && !s.diffuse[size_t(hit.patch)]))
+                L[k] = throughSpecular(*s.tracer, s.corners, s.detail, camera.position, dir, s.settings, 0);
+            else
+                L[k] = hit.patch < 0 ? Rgb::Zero() : diffuse(size_t(hit.patch), hit.u, hit.v, dir);
+        }
+    };
+    return renderPixelsSampled(camera, s.settings.samplesPerPixel, s.settings.seed, "view", radiance, true, batch);
+}
+
+Image renderRadiosityView(const Scene& scene, const Camera& camera, const PatchSet& patches,
+                          const std::shared_ptr<const RayScene>& rays, const CornerValues& corners,
+                          const ViewSettings& settings) {
+    return RadiosityView(scene, patches, rays, corners, settings).render(camera);
 }
 
 }  // namespace penumbra

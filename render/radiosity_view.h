@@ -23,6 +23,21 @@ struct ViewSettings {
     double minThroughput = 1e-3;  // specular branches carrying less are dropped
 };
 
+// A solved scene ready to be seen from any camera: what every view shares (the tracer of mirrors and
+// glass, the textures' irradiance) is made once, so a turntable's views pay only for their pixels.
+class RadiosityView {
+public:
+    RadiosityView(const Scene& scene, const PatchSet& patches, std::shared_ptr<const RayScene> rays,
+                  const CornerValues& cornerRadiosity, const ViewSettings& settings);
+    ~RadiosityView();
+    Image render(const Camera& camera) const;
+
+private:
+    struct Shared;
+    std::unique_ptr<const Shared> shared_;
+};
+
+// One view: RadiosityView(...).render(camera).
 Image renderRadiosityView(const Scene& scene, const Camera& camera, const PatchSet& patches,
                           const std::shared_ptr<const RayScene>& rays,
                           const std::vector<std::array<Rgb, 4>>& cornerRadiosity, const ViewSettings& settings);

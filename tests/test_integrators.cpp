@@ -19,6 +19,7 @@
 #include "render/path_tracer.h"
 #include "render/photon_map.h"
 #include "render/radiosity_view.h"
+#include "render/visibility_buffer.h"
 #include "solver/radiosity/form_factor_kernel.h"
 #include "statistics.h"
 
@@ -703,4 +704,72 @@ TEST(Occlusion, AHiddenBoxIsHiddenAtEveryPixelCentre) {
             }
     }
     EXPECT_GT(hidden, 10);  // the check was made
+}
+
+// The visibility buffer finds what Embree's rays find (the Exact view: a ball's exact sphere, not its
+// facets), at random points of the image, from cameras outside the box, inside it, half a
+// millimetre above the floor, and beside a ball, whose patches cross the plane of the eye: the same patch
+// or sphere, the same distance and the same (u, v) (Embree's split of a quad into two triangles).
+// Fails if a triangle of the split took the other's (u, v), if patches reaching behind the eye were
+// dropped or drawn mirrored, if the depth test kept the farther, if the balls' facets hid their
+// spheres, or if seams between patches let points through.
+TEST(VisibilityBuffer, FindsWhatEmbreeFindsAtEverySample) {
+    for (const char* file : {"cornell-glass.json", "cornell-box.json"}) {
+        const Scene scene = test::sceneFromJson(test::sceneFile(file));
+        const PatchSet patches = meshScene(scene, MeshingOptions{});
+        const std::shared_ptr<const RayScene> rays = buildRayScene(scene, patches);
+        const Eigen::AlignedBox3d box = patchBounds(patches);
+        const Vec3 centre = Vec3(box.center()), size = Vec3(box.sizes());
+        std::vector<Camera> cameras{scene.camera};
+        Camera c = scene.camera;
+        c.position = centre + 0.2 * size.cwiseProduct(Vec3(0.5, 0.25, 1));  // inside the box
+        c.lookAt = c.position + Vec3(0.3, -0.5, 1);
+        cameras.push_back(c);
+        // Half a millimetre above the floor, looking down past its feet: patches across the eye's plane.
+        c.position = Vec3(centre.x(), box.min().y() + 5e-4, centre.z());
+        c.lookAt = c.position + Vec3(0.2, -0.6, 1);
+        c.fovYDeg = 100;
+        cameras.push_back(c);
+        c.fovYDeg = scene.camera.fovYDeg;
+        c.position = centre + size.cwiseProduct(Vec3(0.9, 0.8, -1.1));  // outside, behind and above: walls before walls
+        c.lookAt = centre;
+        cameras.push_back(c);
+        if (rays->sphereCount() > 0) {
+            const RaySphere ball = rays->spheres()[0];
+            c.position = ball.center + Vec3(0, 0, 1.2 * ball.radius);  // beside a ball, looking past it
+            c.lookAt = ball.center + Vec3(0.5 * ball.radius, 0, 0);
+            c.fovYDeg = 100;
+            cameras.push_back(c);
+        }
+        Rng rng(5);
+        for (size_t k = 0; k < cameras.size(); ++k) {
+            Camera cam = cameras[k];
+            cam.width = 48, cam.height = 36;
+            std::vector<CameraSample> samples;
+            for (int y = 0; y < cam.height; ++y)
+                for (int x = 0; x < cam.width; ++x)
+                    for (int s = 0; s < 3; ++s) samples.push_back({x, y, Vec2(x + rng.uniform(), y + rng.uniform())});
+            const std::vector<BufferHit> hits = VisibilityBuffer(patches, *rays, cam).firstHits(samples);
+            const PinholeCamera::ImagePlane p = PinholeCamera(cam).imagePlane();
+            int differ = 0, found = 0;
+            for (size_t i = 0; i < samples.size(); ++i) {
+                const Vec3 D = p.corner + samples[i].at.x() * p.perX + samples[i].at.y() * p.perY;
+                const Hit ray = rays->intersect(cam.position, D.normalized(), 0, 1e30, RayView::Exact);
+                const BufferHit& h = hits[i];
+                found += ray.found();
+                if (ray.patch != h.patch || ray.sphere != h.sphere) {
+                    ++differ;
+                    continue;
+                }
+                if (!ray.found()) continue;
+                EXPECT_NEAR(h.t * D.norm(), ray.t, 1e-5 * ray.t + 1e-6) << file << " camera " << k << " sample " << i;
+                if (ray.patch >= 0) {
+                    EXPECT_NEAR(h.u, ray.u, 1e-4) << file << " camera " << k << " sample " << i;
+                    EXPECT_NEAR(h.v, ray.v, 1e-4) << file << " camera " << k << " sample " << i;
+                }
+            }
+            EXPECT_GT(found, int(samples.size()) / 2) << file << " camera " << k;
+            EXPECT_LE(differ, int(samples.size()) / 1000) << file << " camera " << k;
+        }
+    }
 }
