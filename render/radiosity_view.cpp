@@ -67,9 +67,19 @@ private:
 // rays are, until a diffuse front face shows its interpolated radiosity B / pi. No random numbers:
 // the picture is as smooth as the radiosity it shows.
 Rgb throughSpecular(const SceneTracer& tracer, const std::vector<std::array<Rgb, 4>>& corners,
+                    const TextureDetail& detail, const SurfaceHit& hit, const Vec3& dir, const ViewSettings& settings,
+                    int depth);
+
+// The same along origin + t dir, its first surface found by the tracer.
+Rgb throughSpecular(const SceneTracer& tracer, const std::vector<std::array<Rgb, 4>>& corners,
                     const TextureDetail& detail, const Vec3& origin, const Vec3& dir, const ViewSettings& settings,
                     int depth) {
-    const SurfaceHit hit = tracer.trace(origin, dir);
+    return throughSpecular(tracer, corners, detail, tracer.trace(origin, dir), dir, settings, depth);
+}
+
+Rgb throughSpecular(const SceneTracer& tracer, const std::vector<std::array<Rgb, 4>>& corners,
+                    const TextureDetail& detail, const SurfaceHit& hit, const Vec3& dir, const ViewSettings& settings,
+                    int depth) {
     if (!hit.found) return Rgb::Zero();
     if (hit.material->type == MaterialType::Diffuse) {
         if (!hit.frontFacing(dir) || hit.patch < 0) return Rgb::Zero();
@@ -131,16 +141,23 @@ Image RadiosityView::render(const Camera& camera) const {
     if (VisibilityBuffer::eyeInsideSphere(*s.rays, camera))
         return renderPixelsSampled(camera, s.settings.samplesPerPixel, s.settings.seed, "view", radiance, true);
     const VisibilityBuffer buffer(s.patches, *s.rays, camera);
-    const PinholeCamera cam(camera);
+    const PinholeCamera::ImagePlane image = PinholeCamera(camera).imagePlane();  // as the buffer's t counts
     const BatchRadianceFn batch = [&](const std::vector<CameraSample>& samples, std::vector<Rgb>& L) {
         const std::vector<BufferHit> hits = buffer.firstHits(samples);
         for (size_t k = 0; k < samples.size(); ++k) {
             const BufferHit& hit = hits[k];
-            const Vec3 dir = cam.direction(samples[k].at.x(), samples[k].at.y());
-            if (hit.sphere >= 0 || (hit.patch >= 0 && !s.diffuse[size_t(hit.patch)]))
-                L[k] = throughSpecular(*s.tracer, s.corners, s.detail, camera.position, dir, s.settings, 0);
-            else
+            const Vec3 D = image.corner + samples[k].at.x() * image.perX + samples[k].at.y() * image.perY;
+            const Vec3 dir = D.normalized();
+            if (hit.sphere >= 0 || (hit.patch >= 0 && !s.diffuse[size_t(hit.patch)])) {
+                // Mirrors and glass: their first surface as the buffer found it, the rest by rays.
+                Hit first;
+                first.patch = hit.patch, first.sphere = hit.sphere;
+                first.t = hit.t * D.norm(), first.u = hit.u, first.v = hit.v;
+                L[k] = throughSpecular(*s.tracer, s.corners, s.detail, s.tracer->surfaceAt(first, camera.position, dir),
+                                       dir, s.settings, 0);
+            } else {
                 L[k] = hit.patch < 0 ? Rgb::Zero() : diffuse(size_t(hit.patch), hit.u, hit.v, dir);
+            }
         }
     };
     return renderPixelsSampled(camera, s.settings.samplesPerPixel, s.settings.seed, "view", radiance, true, batch);

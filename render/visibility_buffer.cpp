@@ -74,8 +74,9 @@ struct Disc {
 struct VisibilityBuffer::Shapes {
     int width, height;
     PinholeCamera::ImagePlane plane;
-    std::vector<Triangle> triangles;  // ordered by their first row
-    std::vector<Disc> discs;          // by sphere
+    std::vector<Triangle> triangles;
+    std::vector<std::vector<uint32_t>> rows;  // per row of pixels: the triangles whose box reaches it
+    std::vector<Disc> discs;                  // by sphere
 };
 
 VisibilityBuffer::~VisibilityBuffer() = default;
@@ -117,8 +118,10 @@ VisibilityBuffer::VisibilityBuffer(const PatchSet& patches, const RayScene& rays
     });
     for (size_t k = 0; k < triangles.size(); ++k)
         if (kept[k]) shapes->triangles.push_back(triangles[k]);
-    std::stable_sort(shapes->triangles.begin(), shapes->triangles.end(),
-                     [](const Triangle& a, const Triangle& b) { return a.y0 < b.y0; });
+    shapes->rows.resize(size_t(height));
+    for (size_t k = 0; k < shapes->triangles.size(); ++k)
+        for (int y = shapes->triangles[k].y0; y <= shapes->triangles[k].y1; ++y)
+            shapes->rows[size_t(y)].push_back(uint32_t(k));
 
     // The exact spheres, by the box of their bounding cube's image.
     for (const RaySphere& s : rays.spheres()) {
@@ -141,59 +144,73 @@ std::vector<BufferHit> VisibilityBuffer::firstHits(const std::vector<CameraSampl
     const Shapes& sh = *shapes_;
     std::vector<BufferHit> hits(samples.size());
     if (samples.empty()) return hits;
-    // The samples binned by pixel, over the rows they span.
-    int64_t y0 = samples[0].y, y1 = y0;
-    for (const CameraSample& s : samples) y0 = std::min(y0, s.y), y1 = std::max(y1, s.y);
+    // The samples by pixel (they come in row order): pixel (x, y)'s are [start[i], start[i + 1]) for
+    // i = (y - y0) w + x, over the rows they span.
+    const int64_t y0 = samples.front().y, y1 = samples.back().y;
     const size_t w = size_t(sh.width);
-    std::vector<uint32_t> start(w * size_t(y1 - y0 + 1) + 1, 0), order(samples.size());
-    for (const CameraSample& s : samples) ++start[size_t(s.y - y0) * w + size_t(s.x) + 1];
+    std::vector<uint32_t> start(w * size_t(y1 - y0 + 1) + 1, 0);
+    for (size_t k = 0; k < samples.size(); ++k) {
+        PENUMBRA_CHECK(k == 0 ||
+                       std::pair(samples[k - 1].y, samples[k - 1].x) <= std::pair(samples[k].y, samples[k].x));
+        ++start[size_t(samples[k].y - y0) * w + size_t(samples[k].x) + 1];
+    }
     for (size_t k = 1; k < start.size(); ++k) start[k] += start[k - 1];
-    {
-        std::vector<uint32_t> next(start.begin(), start.end() - 1);
-        for (size_t k = 0; k < samples.size(); ++k)
-            order[next[size_t(samples[k].y - y0) * w + size_t(samples[k].x)]++] = uint32_t(k);
-    }
-    // Calls f(k) for every sample k in pixels [x0, x1] x [ya, yb] (clipped to the samples' rows).
-    const auto forSamples = [&](int x0, int x1, int64_t ya, int64_t yb, const auto& f) {
-        for (int64_t y = std::max(ya, y0); y <= std::min(yb, y1); ++y) {
-            const size_t row = size_t(y - y0) * w;
-            for (uint32_t i = start[row + size_t(x0)], end = start[row + size_t(x1) + 1]; i < end; ++i) f(order[i]);
-        }
+    // Calls f(k) for every sample k in pixels [x0, x1] of row y.
+    const auto forSamples = [&](int x0, int x1, int64_t y, const auto& f) {
+        const size_t row = size_t(y - y0) * w;
+        for (uint32_t k = start[row + size_t(x0)], end = start[row + size_t(x1) + 1]; k < end; ++k) f(k);
     };
-    for (const Triangle& t : sh.triangles) {
-        if (t.y0 > y1) break;
-        if (t.y1 < y0) continue;
-        forSamples(t.x0, t.x1, t.y0, t.y1, [&](uint32_t k) {
-            const Vec2& p = samples[k].at;
-            const double e0 = t.c[0] + p.y() * t.b[0] + p.x() * t.a[0];
-            const double e1 = t.c[1] + p.y() * t.b[1] + p.x() * t.a[1];
-            const double e2 = t.c[2] + p.y() * t.b[2] + p.x() * t.a[2];
-            if (!(e0 >= 0 && e1 >= 0 && e2 >= 0)) return;
-            const double sum = e0 + e1 + e2;
-            if (!(sum > 0)) return;
-            const double dist = t.det / sum;
-            BufferHit& h = hits[k];
-            if (!(dist < h.t)) return;
-            h.t = dist;
-            h.patch = t.patch;
-            h.u = t.shape == 0 ? e1 / sum : 1 - e1 / sum;
-            h.v = t.shape == 0 ? e2 / sum : 1 - e2 / sum;
-        });
-    }
+    for (int64_t y = y0; y <= y1; ++y)
+        for (const uint32_t index : sh.rows[size_t(y)]) {
+            const Triangle& t = sh.triangles[index];
+            // The pixels of the row where every edge function may be positive (its samples lie in
+            // [y, y + 1)), within the box.
+            double lo = t.x0, hi = t.x1 + 1;
+            for (int e = 0; e < 3; ++e) {
+                const double a = t.a[e], r0 = t.c[e] + double(y) * t.b[e], r1 = r0 + t.b[e];
+                if (a > 0)
+                    lo = std::max(lo, -std::max(r0, r1) / a);
+                else if (a < 0)
+                    hi = std::min(hi, -std::max(r0, r1) / a);
+                else if (std::max(r0, r1) < 0)
+                    hi = lo - 1;
+            }
+            if (!(hi >= lo)) continue;
+            // A thousandth of a pixel's margin for rounding.
+            const int xa = std::max(t.x0, int(std::floor(lo - 1e-3))), xb = std::min(t.x1, int(std::floor(hi + 1e-3)));
+            if (xa > xb) continue;
+            forSamples(xa, xb, y, [&](uint32_t k) {
+                const Vec2& p = samples[k].at;
+                const double e0 = t.c[0] + p.y() * t.b[0] + p.x() * t.a[0];
+                const double e1 = t.c[1] + p.y() * t.b[1] + p.x() * t.a[1];
+                const double e2 = t.c[2] + p.y() * t.b[2] + p.x() * t.a[2];
+                if (!(e0 >= 0 && e1 >= 0 && e2 >= 0)) return;
+                const double sum = e0 + e1 + e2;
+                if (!(sum > 0)) return;
+                const double dist = t.det / sum;
+                BufferHit& h = hits[k];
+                if (!(dist < h.t)) return;
+                h.t = dist;
+                h.patch = t.patch;
+                h.u = t.shape == 0 ? e1 / sum : 1 - e1 / sum;
+                h.v = t.shape == 0 ? e2 / sum : 1 - e2 / sum;
+            });
+        }
     for (size_t s = 0; s < sh.discs.size(); ++s) {
         const Disc& d = sh.discs[s];
         const double cc = d.centre.squaredNorm() - d.radius * d.radius;
         if (d.x0 > d.x1) continue;
-        forSamples(d.x0, d.x1, d.y0, d.y1, [&](uint32_t k) {
-            const Vec2& p = samples[k].at;
-            const Vec3 D = sh.plane.corner + p.x() * sh.plane.perX + p.y() * sh.plane.perY;
-            const double a = D.squaredNorm(), b = D.dot(d.centre), disc = b * b - a * cc;
-            if (!(disc >= 0)) return;
-            const double dist = (b - std::sqrt(disc)) / a;
-            BufferHit& h = hits[k];
-            if (!(dist > 0 && dist < h.t)) return;
-            h = BufferHit{-1, int(s), dist, 0, 0};
-        });
+        for (int64_t y = std::max<int64_t>(d.y0, y0); y <= std::min<int64_t>(d.y1, y1); ++y)
+            forSamples(d.x0, d.x1, y, [&](uint32_t k) {
+                const Vec2& p = samples[k].at;
+                const Vec3 D = sh.plane.corner + p.x() * sh.plane.perX + p.y() * sh.plane.perY;
+                const double a = D.squaredNorm(), b = D.dot(d.centre), disc = b * b - a * cc;
+                if (!(disc >= 0)) return;
+                const double dist = (b - std::sqrt(disc)) / a;
+                BufferHit& h = hits[k];
+                if (!(dist > 0 && dist < h.t)) return;
+                h = BufferHit{-1, int(s), dist, 0, 0};
+            });
     }
     return hits;
 }

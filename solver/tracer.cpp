@@ -212,7 +212,10 @@ SurfaceHit SceneTracer::trace(const Vec3& origin, const Vec3& dir, double tMin) 
         shade(s);
         return s;
     }
-    const Hit h = rays_->intersect(origin, dir, tMin, 1e30, RayView::Exact);
+    return surfaceAt(rays_->intersect(origin, dir, tMin, 1e30, RayView::Exact), origin, dir);
+}
+
+SurfaceHit SceneTracer::surfaceAt(const Hit& h, const Vec3& origin, const Vec3& dir) const {
     SurfaceHit s;
     if (!h.found()) return s;
     s.found = true;

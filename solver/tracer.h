@@ -68,6 +68,9 @@ public:
 
     // Nearest surface along origin + t dir (dir unit), t > tMin.
     SurfaceHit trace(const Vec3& origin, const Vec3& dir, double tMin = 0) const;
+    // The surface at the Exact view's hit `h` along origin + t dir (dir unit), found by other means
+    // than trace (a visibility buffer).
+    SurfaceHit surfaceAt(const Hit& h, const Vec3& origin, const Vec3& dir) const;
     // Nothing between a and b (both already offset off their surfaces).
     bool visible(const Vec3& a, const Vec3& b) const;
     // A point just off the surface at `hit`, on the side that `dir` leaves towards.
