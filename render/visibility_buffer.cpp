@@ -23,11 +23,12 @@ struct Triangle {
 
 // The box of pixels that the image of the points `p` (relative to the eye) in front of the
 // eye may cover, in a w x h image; false if none lies in front.
-bool imageBox(const std::vector<Vec3>& p, const PinholeCamera::ImagePlane& plane, int w, int h, int& x0, int& x1,
+bool imageBox(const Vec3* p, size_t count, const PinholeCamera::ImagePlane& plane, int w, int h, int& x0, int& x1,
               int& y0, int& y1) {
     const double sx = 1 / plane.perX.squaredNorm(), sy = 1 / plane.perY.squaredNorm();
     double lo[2] = {HUGE_VAL, HUGE_VAL}, hi[2] = {-HUGE_VAL, -HUGE_VAL};
-    for (const Vec3& q : p) {
+    for (size_t i = 0; i < count; ++i) {
+        const Vec3& q = p[i];
         const Vec3 onPlane = q / q.dot(plane.forward) - plane.corner;
         const double xy[2] = {onPlane.dot(plane.perX) * sx, onPlane.dot(plane.perY) * sy};
         for (int k = 0; k < 2; ++k) lo[k] = std::min(lo[k], xy[k]), hi[k] = std::max(hi[k], xy[k]);
@@ -39,19 +40,21 @@ bool imageBox(const std::vector<Vec3>& p, const PinholeCamera::ImagePlane& plane
     return x0 <= x1 && y0 <= y1;
 }
 
-// Polygon `p` (relative to the eye) cut to the half space in front of the eye (Sutherland-Hodgman),
-// a hair in front so that the projection stays finite.
-std::vector<Vec3> inFront(const std::vector<Vec3>& p, const Vec3& forward) {
-    double reach = 0;
-    for (const Vec3& q : p) reach = std::max(reach, q.norm());
-    const double near = 1e-9 * reach;
-    std::vector<Vec3> out;
-    for (size_t k = 0; k < p.size(); ++k) {
+// Triangle `p` (relative to the eye) cut to the half space in front of the eye (Sutherland-Hodgman),
+// a hair in front so that the projection stays finite: at most four corners.
+struct Clipped {
+    Vec3 v[4];
+    size_t n = 0;
+};
+Clipped inFront(const Vec3 (&p)[3], const Vec3& forward) {
+    const double near = 1e-9 * std::max({p[0].norm(), p[1].norm(), p[2].norm()});
+    Clipped out;
+    for (size_t k = 0; k < 3; ++k) {
         const Vec3& a = p[k];
-        const Vec3& b = p[(k + 1) % p.size()];
+        const Vec3& b = p[(k + 1) % 3];
         const double za = a.dot(forward) - near, zb = b.dot(forward) - near;
-        if (za > 0) out.push_back(a);
-        if ((za > 0) != (zb > 0)) out.push_back(a + (za / (za - zb)) * (b - a));
+        if (za > 0) out.v[out.n++] = a;
+        if ((za > 0) != (zb > 0)) out.v[out.n++] = a + (za / (za - zb)) * (b - a);
     }
     return out;
 }
@@ -75,8 +78,9 @@ struct VisibilityBuffer::Shapes {
     int width, height;
     PinholeCamera::ImagePlane plane;
     std::vector<Triangle> triangles;
-    std::vector<std::vector<uint32_t>> rows;  // per row of pixels: the triangles whose box reaches it
-    std::vector<Disc> discs;                  // by sphere
+    // Per row of pixels y, the triangles whose box reaches it: rowTriangles[rowStart[y], rowStart[y + 1]).
+    std::vector<uint32_t> rowStart, rowTriangles;
+    std::vector<Disc> discs;  // by sphere
 };
 
 VisibilityBuffer::~VisibilityBuffer() = default;
@@ -88,51 +92,53 @@ VisibilityBuffer::VisibilityBuffer(const PatchSet& patches, const RayScene& rays
     const Vec3& forward = plane.forward;
     const Vec3& eye = camera.position;
 
-    // Every patch's triangles, as Embree splits a quad, set up in parallel.
-    std::vector<Triangle> triangles(2 * patches.size());
-    std::vector<char> kept(triangles.size(), 0);
-    parallelFor(int64_t(patches.size()), [&](int64_t i0, int64_t i1) {
-        for (int64_t i = i0; i < i1; ++i) {
-            if (rays.onExactSphere(size_t(i))) continue;
-            const std::array<Vec3, 4>& q = patches.corners[size_t(i)];
-            const bool triangle = patches.isTriangle(size_t(i));
-            for (int shape = 0; shape < (triangle ? 1 : 2); ++shape) {
-                const Vec3 v[3] = {shape == 0 ? q[0] - eye : q[2] - eye, shape == 0 ? q[1] - eye : q[3] - eye,
-                                   shape == 0 ? (triangle ? q[2] : q[3]) - eye : q[1] - eye};
-                Vec3 n[3] = {v[1].cross(v[2]), v[2].cross(v[0]), v[0].cross(v[1])};
-                const double det = v[0].dot(n[0]);
-                if (!(std::abs(det) > 0)) continue;  // edge-on to the eye (or degenerate): no area in the image
-                Triangle& t = triangles[size_t(2 * i + shape)];
-                if (!imageBox(inFront({v[0], v[1], v[2]}, forward), plane, width, height, t.x0, t.x1, t.y0, t.y1))
-                    continue;
-                for (int k = 0; k < 3; ++k) {
-                    if (det < 0) n[k] = -n[k];
-                    t.a[k] = n[k].dot(plane.perX), t.b[k] = n[k].dot(plane.perY), t.c[k] = n[k].dot(plane.corner);
-                }
-                t.det = std::abs(det);
-                t.patch = int(i);
-                t.shape = shape;
-                kept[size_t(2 * i + shape)] = 1;
+    // Every patch's triangles, as Embree splits a quad, that the image may show.
+    std::vector<Triangle>& triangles = shapes->triangles;
+    triangles.reserve(2 * patches.size());
+    for (size_t i = 0; i < patches.size(); ++i) {
+        if (rays.onExactSphere(i)) continue;
+        const std::array<Vec3, 4>& q = patches.corners[i];
+        const bool triangle = patches.isTriangle(i);
+        for (int shape = 0; shape < (triangle ? 1 : 2); ++shape) {
+            const Vec3 v[3] = {shape == 0 ? q[0] - eye : q[2] - eye, shape == 0 ? q[1] - eye : q[3] - eye,
+                               shape == 0 ? (triangle ? q[2] : q[3]) - eye : q[1] - eye};
+            Vec3 n[3] = {v[1].cross(v[2]), v[2].cross(v[0]), v[0].cross(v[1])};
+            const double det = v[0].dot(n[0]);
+            if (!(std::abs(det) > 0)) continue;  // edge-on to the eye (or degenerate): no area in the image
+            Triangle t;
+            const Clipped front = inFront(v, forward);
+            if (!imageBox(front.v, front.n, plane, width, height, t.x0, t.x1, t.y0, t.y1)) continue;
+            for (int k = 0; k < 3; ++k) {
+                if (det < 0) n[k] = -n[k];
+                t.a[k] = n[k].dot(plane.perX), t.b[k] = n[k].dot(plane.perY), t.c[k] = n[k].dot(plane.corner);
             }
+            t.det = std::abs(det);
+            t.patch = int(i);
+            t.shape = shape;
+            triangles.push_back(t);
         }
-    });
-    for (size_t k = 0; k < triangles.size(); ++k)
-        if (kept[k]) shapes->triangles.push_back(triangles[k]);
-    shapes->rows.resize(size_t(height));
+    }
+    std::vector<uint32_t>& rowStart = shapes->rowStart;
+    rowStart.assign(size_t(height) + 1, 0);
+    for (const Triangle& t : shapes->triangles)
+        for (int y = t.y0; y <= t.y1; ++y) ++rowStart[size_t(y) + 1];
+    for (size_t y = 1; y < rowStart.size(); ++y) rowStart[y] += rowStart[y - 1];
+    shapes->rowTriangles.resize(rowStart.back());
+    std::vector<uint32_t> next(rowStart.begin(), rowStart.end() - 1);
     for (size_t k = 0; k < shapes->triangles.size(); ++k)
         for (int y = shapes->triangles[k].y0; y <= shapes->triangles[k].y1; ++y)
-            shapes->rows[size_t(y)].push_back(uint32_t(k));
+            shapes->rowTriangles[next[size_t(y)]++] = uint32_t(k);
 
     // The exact spheres, by the box of their bounding cube's image.
     for (const RaySphere& s : rays.spheres()) {
         Disc d{s.center - eye, s.radius, 1, 0, 1, 0};  // an empty box unless seen
-        std::vector<Vec3> cube;
+        Vec3 cube[8];
         for (int k = 0; k < 8; ++k)
-            cube.push_back(d.centre + s.radius * Vec3(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1));
+            cube[k] = d.centre + s.radius * Vec3(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1);
         bool behind = false;
         for (const Vec3& c : cube) behind = behind || !(c.dot(forward) > 1e-9 * c.norm());
         if (!behind)
-            imageBox(cube, plane, width, height, d.x0, d.x1, d.y0, d.y1);
+            imageBox(cube, 8, plane, width, height, d.x0, d.x1, d.y0, d.y1);
         else if (d.centre.dot(forward) + s.radius > 0)
             d.x0 = 0, d.x1 = width - 1, d.y0 = 0, d.y1 = height - 1;
         shapes->discs.push_back(d);
@@ -161,8 +167,8 @@ std::vector<BufferHit> VisibilityBuffer::firstHits(const std::vector<CameraSampl
         for (uint32_t k = start[row + size_t(x0)], end = start[row + size_t(x1) + 1]; k < end; ++k) f(k);
     };
     for (int64_t y = y0; y <= y1; ++y)
-        for (const uint32_t index : sh.rows[size_t(y)]) {
-            const Triangle& t = sh.triangles[index];
+        for (uint32_t i = sh.rowStart[size_t(y)]; i < sh.rowStart[size_t(y) + 1]; ++i) {
+            const Triangle& t = sh.triangles[sh.rowTriangles[i]];
             // The pixels of the row where every edge function may be positive (its samples lie in
             // [y, y + 1)), within the box.
             double lo = t.x0, hi = t.x1 + 1;
