@@ -38,7 +38,7 @@ Rgb FinalGather::radiosityAt(const SurfaceHit& y) const {
 }
 
 template <typename Generator>
-Rgb FinalGather::trace(const Vec3& origin, const Vec3& dir, Generator& rng, int depth) const {
+Rgb FinalGather::trace(const Vec3& origin, const Vec3& dir, Generator& rng, int depth, const Rgb& carried) const {
     const SurfaceHit hit = tracer_.trace(origin, dir);
     if (!hit.found) return Rgb::Zero();
     const Material& m = *hit.material;
@@ -50,9 +50,12 @@ Rgb FinalGather::trace(const Vec3& origin, const Vec3& dir, Generator& rng, int 
     SpecularBranch branches[2];
     const int count = specularBranches(hit, dir, branches);
     Rgb L = Rgb::Zero();
-    for (int b = 0; b < count; ++b)
-        if (branches[b].weight.maxCoeff() >= settings_.minThroughput)
-            L += branches[b].weight * trace(tracer_.offset(hit, branches[b].dir), branches[b].dir, rng, depth + 1);
+    for (int b = 0; b < count; ++b) {
+        const Rgb next = carried * branches[b].weight;
+        if (next.maxCoeff() >= settings_.minThroughput)
+            L +=
+                branches[b].weight * trace(tracer_.offset(hit, branches[b].dir), branches[b].dir, rng, depth + 1, next);
+    }
     return L;
 }
 
@@ -132,8 +135,8 @@ Rgb FinalGather::indirectIrradiance(const SurfaceHit& x, Generator& rng, int ray
 
 template Rgb FinalGather::reflected(const SurfaceHit&, Rng&, int) const;
 template Rgb FinalGather::reflected(const SurfaceHit&, PixelSampler&, int) const;
-template Rgb FinalGather::trace(const Vec3&, const Vec3&, Rng&, int) const;
-template Rgb FinalGather::trace(const Vec3&, const Vec3&, PixelSampler&, int) const;
+template Rgb FinalGather::trace(const Vec3&, const Vec3&, Rng&, int, const Rgb&) const;
+template Rgb FinalGather::trace(const Vec3&, const Vec3&, PixelSampler&, int, const Rgb&) const;
 
 GatherEffort gatherEffortFor(int samplesPerPixel) {
     constexpr int kFullSamples = 16;

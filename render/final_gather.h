@@ -48,7 +48,7 @@ public:
     // Radiance arriving along a camera ray, its numbers from `g` (an Rng, or the pixel's PixelSampler).
     template <typename Generator>
     Rgb radiance(const Vec3& origin, const Vec3& dir, Generator& g) const {
-        return trace(origin, dir, g, 0);
+        return trace(origin, dir, g, 0, Rgb::Ones());
     }
 
     // Light reflected by the diffuse front face at `x` (emission excluded), W sr^-1 m^-2; `level`
@@ -59,8 +59,9 @@ public:
     Rgb radiosityAt(const SurfaceHit& y) const;
 
 private:
+    // `carried`: what the camera's ray carries here (mirrors' and glass's weights so far).
     template <typename Generator>
-    Rgb trace(const Vec3& origin, const Vec3& dir, Generator& g, int depth) const;
+    Rgb trace(const Vec3& origin, const Vec3& dir, Generator& g, int depth, const Rgb& carried) const;
     // Both estimate direct light too, combined by multiple importance sampling: each needs the
     // other's sample count.
     template <typename Generator>
