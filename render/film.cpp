@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <optional>
 
 #include "core/cluster.h"
 #include "core/counters.h"
@@ -210,10 +211,13 @@ Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t se
             return sums;
         }
         std::vector<CameraSample> samples;
-        for (const PixelJob& job : jobs) {
-            PixelSampler sampler(job.seed);
+        samples.reserve(jobs.size() * size_t(jobs.empty() ? 0 : jobs[0].count));
+        std::optional<PixelSampler> sampler;  // kept while the jobs share their sets (a tile's pixels)
+        for (size_t j = 0; j < jobs.size(); ++j) {
+            const PixelJob& job = jobs[j];
+            if (j == 0 || job.seed != jobs[j - 1].seed) sampler.emplace(job.seed);
             for (int s = 0; s < job.count; ++s)
-                samples.push_back({job.x, job.y, pass.start(sampler, job.x, job.y, job.first + uint32_t(s))});
+                samples.push_back({job.x, job.y, pass.start(*sampler, job.x, job.y, job.first + uint32_t(s))});
         }
         std::vector<Rgb> L(samples.size());
         batch(samples, L);

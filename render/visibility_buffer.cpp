@@ -15,6 +15,7 @@ namespace {
 // direction D and the plane's normal N, and det / sum the distance along D.
 struct Triangle {
     double a[3], b[3], c[3];
+    double invA[3];  // 1 / a (0 where a is 0)
     double det;
     int patch;
     int shape;           // 0: a quad's first triangle (v0, v1, v3) or a triangle patch; 1: a quad's second (v2, v3, v1)
@@ -111,6 +112,7 @@ VisibilityBuffer::VisibilityBuffer(const PatchSet& patches, const RayScene& rays
             for (int k = 0; k < 3; ++k) {
                 if (det < 0) n[k] = -n[k];
                 t.a[k] = n[k].dot(plane.perX), t.b[k] = n[k].dot(plane.perY), t.c[k] = n[k].dot(plane.corner);
+                t.invA[k] = t.a[k] != 0 ? 1 / t.a[k] : 0;
             }
             t.det = std::abs(det);
             t.patch = int(i);
@@ -175,9 +177,9 @@ std::vector<BufferHit> VisibilityBuffer::firstHits(const std::vector<CameraSampl
             for (int e = 0; e < 3; ++e) {
                 const double a = t.a[e], r0 = t.c[e] + double(y) * t.b[e], r1 = r0 + t.b[e];
                 if (a > 0)
-                    lo = std::max(lo, -std::max(r0, r1) / a);
+                    lo = std::max(lo, -std::max(r0, r1) * t.invA[e]);
                 else if (a < 0)
-                    hi = std::min(hi, -std::max(r0, r1) / a);
+                    hi = std::min(hi, -std::max(r0, r1) * t.invA[e]);
                 else if (std::max(r0, r1) < 0)
                     hi = lo - 1;
             }
