@@ -210,20 +210,25 @@ Image renderPixelsSampled(const Camera& camera, int samplesPerPixel, uint64_t se
             }
             return sums;
         }
+        // In runs of whole jobs of about kBatch samples, so that many samples a pixel stay in bounds.
+        constexpr size_t kBatch = 65536;
         std::vector<CameraSample> samples;
-        samples.reserve(jobs.size() * size_t(jobs.empty() ? 0 : jobs[0].count));
+        std::vector<Rgb> L;
         std::optional<PixelSampler> sampler;  // kept while the jobs share their sets (a tile's pixels)
-        for (size_t j = 0; j < jobs.size(); ++j) {
-            const PixelJob& job = jobs[j];
-            if (j == 0 || job.seed != jobs[j - 1].seed) sampler.emplace(job.seed);
-            for (int s = 0; s < job.count; ++s)
-                samples.push_back({job.x, job.y, pass.start(*sampler, job.x, job.y, job.first + uint32_t(s))});
+        for (size_t j0 = 0, j1; j0 < jobs.size(); j0 = j1) {
+            samples.clear();
+            for (j1 = j0; j1 < jobs.size() && (j1 == j0 || samples.size() + size_t(jobs[j1].count) <= kBatch); ++j1) {
+                const PixelJob& job = jobs[j1];
+                if (!sampler || job.seed != jobs[j1 - 1].seed) sampler.emplace(job.seed);
+                for (int s = 0; s < job.count; ++s)
+                    samples.push_back({job.x, job.y, pass.start(*sampler, job.x, job.y, job.first + uint32_t(s))});
+            }
+            L.assign(samples.size(), Rgb::Zero());
+            batch(samples, L);
+            size_t k = 0;
+            for (size_t j = j0; j < j1; ++j)
+                for (int s = 0; s < jobs[j].count; ++s) sums[j].add(L[k++]);
         }
-        std::vector<Rgb> L(samples.size());
-        batch(samples, L);
-        size_t k = 0;
-        for (size_t j = 0; j < jobs.size(); ++j)
-            for (int s = 0; s < jobs[j].count; ++s) sums[j].add(L[k++]);
         return sums;
     };
     std::vector<float> contrast(edges ? size_t(w) * size_t(h) : 0, 0.0f);

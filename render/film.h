@@ -30,11 +30,12 @@ using SampledRadianceFn = std::function<Rgb(const Vec3& origin, const Vec3& dir,
 // indices, by its Morton rank, so that any aligned block of pixels draws a net too and neighbours'
 // errors cancel (blue noise). Sample s of a pixel takes its point in the pixel from dimensions 0-1,
 // and the radiance function the dimensions from 4 on. The same image whatever the thread count.
-// `edges`: a pixel whose samples differ by more than their mean (at one sample per pixel: whose
-// neighbourhood's values do), and its eight neighbours, take four times their samples again, at
-// least 64 beside a lamp's edge (a lamp is fifty times brighter than the ceiling around it).
-// `batch`, if given, takes each band's samples of each pass at once instead of `radiance`: for a view
-// that finds what they see without rays (VisibilityBuffer).
+// `edges`: a pixel whose samples differ by more than their mean, and its eight neighbours (at one
+// sample per pixel: a pixel whose 3 x 3 neighbourhood's values do), take four times their samples
+// again, at least 64 beside a lamp's edge (a lamp is fifty times brighter than the ceiling around it).
+// `batch`, if given, takes the samples of each band and pass instead of `radiance`, many at once (in
+// row order, at most about 65,536 a call): for a view that finds what they see without rays
+// (VisibilityBuffer).
 struct CameraSample {
     int x;
     int64_t y;  // the pixel

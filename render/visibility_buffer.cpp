@@ -41,6 +41,14 @@ bool imageBox(const Vec3* p, size_t count, const PinholeCamera::ImagePlane& plan
     return x0 <= x1 && y0 <= y1;
 }
 
+// The normal of the plane through the eye and corners p and q (relative to the eye), p x q, computed
+// with its corners in a fixed order so that the triangle across the edge gets exactly its negative
+// whatever the compiler fuses (a x b and -(b x a) may round apart under fused multiply-adds).
+Vec3 edgePlane(const Vec3& p, const Vec3& q) {
+    const bool inOrder = std::lexicographical_compare(p.data(), p.data() + 3, q.data(), q.data() + 3);
+    return inOrder ? Vec3(p.cross(q)) : Vec3(-q.cross(p));
+}
+
 // Triangle `p` (relative to the eye) cut to the half space in front of the eye (Sutherland-Hodgman),
 // a hair in front so that the projection stays finite: at most four corners.
 struct Clipped {
@@ -99,11 +107,11 @@ VisibilityBuffer::VisibilityBuffer(const PatchSet& patches, const RayScene& rays
     for (size_t i = 0; i < patches.size(); ++i) {
         if (rays.onExactSphere(i)) continue;
         const std::array<Vec3, 4>& q = patches.corners[i];
-        const bool triangle = patches.isTriangle(i);
-        for (int shape = 0; shape < (triangle ? 1 : 2); ++shape) {
+        // Embree is given all four corners, a triangle's fourth its third: (q0, q1, q3) is it whole.
+        for (int shape = 0; shape < (patches.isTriangle(i) ? 1 : 2); ++shape) {
             const Vec3 v[3] = {shape == 0 ? q[0] - eye : q[2] - eye, shape == 0 ? q[1] - eye : q[3] - eye,
-                               shape == 0 ? (triangle ? q[2] : q[3]) - eye : q[1] - eye};
-            Vec3 n[3] = {v[1].cross(v[2]), v[2].cross(v[0]), v[0].cross(v[1])};
+                               shape == 0 ? q[3] - eye : q[1] - eye};
+            Vec3 n[3] = {edgePlane(v[1], v[2]), edgePlane(v[2], v[0]), edgePlane(v[0], v[1])};
             const double det = v[0].dot(n[0]);
             if (!(std::abs(det) > 0)) continue;  // edge-on to the eye (or degenerate): no area in the image
             Triangle t;
@@ -158,6 +166,7 @@ std::vector<BufferHit> VisibilityBuffer::firstHits(const std::vector<CameraSampl
     const size_t w = size_t(sh.width);
     std::vector<uint32_t> start(w * size_t(y1 - y0 + 1) + 1, 0);
     for (size_t k = 0; k < samples.size(); ++k) {
+        PENUMBRA_CHECK(samples[k].x >= 0 && samples[k].x < sh.width && samples[k].y >= 0 && samples[k].y < sh.height);
         PENUMBRA_CHECK(k == 0 ||
                        std::pair(samples[k - 1].y, samples[k - 1].x) <= std::pair(samples[k].y, samples[k].x));
         ++start[size_t(samples[k].y - y0) * w + size_t(samples[k].x) + 1];

@@ -707,17 +707,30 @@ TEST(Occlusion, AHiddenBoxIsHiddenAtEveryPixelCentre) {
 }
 
 // The visibility buffer finds what Embree's rays find (the Exact view: a ball's exact sphere, not its
-// facets), at random points of the image, from cameras outside the box, inside it, half a
-// millimetre above the floor, and beside a ball, whose patches cross the plane of the eye: the same patch
-// or sphere, the same distance and the same (u, v) (Embree's split of a quad into two triangles).
-// Fails if a triangle of the split took the other's (u, v), if patches reaching behind the eye were
-// dropped or drawn mirrored, if the depth test kept the farther, if the balls' facets hid their
-// spheres, or if seams between patches let points through.
+// facets; triangle patches as Embree's degenerate quads), at random points of the image, from cameras outside the box,
+// inside it, half a millimetre above the floor, and beside a ball, whose patches cross the plane of the eye: the same
+// patch or sphere, the same distance and the same (u, v) (Embree's split of a quad into two triangles). Fails if a
+// triangle of the split took the other's (u, v), if patches reaching behind the eye were dropped or drawn mirrored, if
+// the depth test kept the farther, if the balls' facets hid their spheres, or if seams between patches let points
+// through.
 TEST(VisibilityBuffer, FindsWhatEmbreeFindsAtEverySample) {
-    for (const char* file : {"cornell-glass.json", "cornell-box.json"}) {
-        const Scene scene = test::sceneFromJson(test::sceneFile(file));
+    // The third: cornell-glass with its mirror ball white, meshed (triangles at its poles) and drawn
+    // as patches.
+    std::string white = test::sceneFile("cornell-glass.json");
+    white.replace(white.find(R"("material": "chrome")"), 20, R"("material": "white" )");
+    const std::vector<std::pair<std::string, std::string>> scenes{
+        {"cornell-glass", test::sceneFile("cornell-glass.json")},
+        {"cornell-box", test::sceneFile("cornell-box.json")},
+        {"cornell-glass with a white ball", white}};
+    for (const auto& [file, json] : scenes) {
+        const Scene scene = test::sceneFromJson(json);
         const PatchSet patches = meshScene(scene, MeshingOptions{});
         const std::shared_ptr<const RayScene> rays = buildRayScene(scene, patches);
+        size_t triangles = 0;
+        for (size_t i = 0; i < patches.size(); ++i) triangles += patches.isTriangle(i) && !rays->onExactSphere(i);
+        if (json == white) {
+            EXPECT_GT(triangles, 0u) << file;
+        }
         const Eigen::AlignedBox3d box = patchBounds(patches);
         const Vec3 centre = Vec3(box.center()), size = Vec3(box.sizes());
         std::vector<Camera> cameras{scene.camera};

@@ -77,5 +77,5 @@ TEST(RadiosityView, GlassIsFollowedWhileItsLightCountsAndNoFurther) {
            3, -1, &counted);
     const double samples = double(counted.at("render.camera_samples"));
     ASSERT_GT(samples, 0);
-    EXPECT_NEAR(double(counted.at("rays.nearest")) / samples, 7.0, 1.0);
+    EXPECT_NEAR(double(counted.at("rays.nearest")) / samples, 7.0, 0.01);
 }
